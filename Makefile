@@ -1,0 +1,33 @@
+# navzoo: the two README commands, plus helpers. PYTHON may point at any Python >= 3.11.
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+
+.PHONY: demo test install install-test lint speed clean
+
+$(VENV)/bin/activate:
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --upgrade pip
+
+# CPU torch first (the wheel that is pinned for this project); an unpinned torch would pull CUDA.
+install: $(VENV)/bin/activate
+	$(PY) -m pip install torch==2.13.0
+	$(PY) -m pip install -e .
+
+install-test: install
+	$(PY) -m pip install -e ".[test]"
+
+demo: install
+	$(VENV)/bin/navzoo demo --out runs/demo
+
+test: install-test
+	$(PY) -m pytest -n 2 --durations=15 -q
+
+lint:
+	$(VENV)/bin/ruff check navzoo tests
+
+speed: install
+	$(VENV)/bin/navzoo speed --humans 5,20,64
+
+clean:
+	rm -rf runs .pytest_cache .ruff_cache

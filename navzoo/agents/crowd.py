@@ -1,0 +1,83 @@
+"""Rule-based crowd: drives the pedestrian agents with social force or ORCA along A* waypoints.
+
+This is the policy that the frozen-agents wrapper owns for pedestrians by default. It reads the
+world's state arrays from the env (positions, velocities, A* waypoints, walls), computes every
+pedestrian's new velocity in one vectorised call, and returns it as the pedestrians' actions
+(planar velocity in each person's own frame, normalised by ``human_max_speed``).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+
+from navzoo.agents.orca import OrcaParams, orca_velocities
+from navzoo.agents.policy import preferred_velocity
+from navzoo.agents.sfm import SocialForceParams, social_force_velocities
+
+if TYPE_CHECKING:
+    from navzoo.envs.nav_env import NavEnv
+
+
+class CrowdPolicy:
+    """Social-force or ORCA pedestrians following their A* waypoints.
+
+    Args:
+        model: ``"sfm"`` or ``"orca"``.
+        see_robots: whether people react to robots (False = CrowdNav's invisible robot).
+        sfm_params / orca_params: model parameters.
+    """
+
+    def __init__(
+        self,
+        model: Literal["sfm", "orca"] = "sfm",
+        see_robots: bool = True,
+        sfm_params: SocialForceParams | None = None,
+        orca_params: OrcaParams | None = None,
+    ) -> None:
+        if model not in ("sfm", "orca"):
+            raise ValueError(f"crowd model must be 'sfm' or 'orca', got {model!r}")
+        self.model = model
+        self.see_robots = see_robots
+        self.sfm_params = sfm_params or SocialForceParams()
+        self.orca_params = orca_params or OrcaParams()
+
+    def reset(self, env: NavEnv) -> None:  # stateless: everything it needs is in the env
+        return None
+
+    def velocities(self, env: NavEnv) -> np.ndarray:
+        """New world-frame velocities (H, 2) of all pedestrians."""
+        R, N = env.n_robots, env.n_total
+        h = np.arange(R, N)
+        if h.size == 0:
+            return np.zeros((0, 2))
+        pos, vel, rad = env.pos[h], env.vel[h], env.radius[h]
+        pref = preferred_velocity(pos, env.next_waypoints()[h], env.goal[h], env.v_pref[h])
+        vmax = np.full(h.size, env.config.human_max_speed)
+        robots = np.flatnonzero(env.alive[:R]) if self.see_robots else np.zeros(0, dtype=int)
+        if self.model == "sfm":
+            return social_force_velocities(
+                pos, vel, pref, rad, vmax, env.config.dt, self.sfm_params, env.segments,
+                others_pos=env.pos[robots], others_vel=env.vel[robots], others_radius=env.radius[robots],
+            )
+        all_pos = np.concatenate([pos, env.pos[robots]])
+        all_vel = np.concatenate([vel, env.vel[robots]])
+        all_pref = np.concatenate([pref, env.vel[robots]])
+        all_rad = np.concatenate([rad, env.radius[robots]])
+        all_max = np.concatenate([vmax, np.full(robots.size, env.config.robot.max_speed)])
+        return orca_velocities(all_pos, all_vel, all_pref, all_rad, all_max, env.config.dt, self.orca_params,
+                               env.segments, n_active=h.size)
+
+    def act(self, observations: dict[str, Any], env: NavEnv) -> dict[str, np.ndarray]:
+        v = self.velocities(env)
+        R = env.n_robots
+        yaw = env.yaw[R:]
+        c, s = np.cos(yaw), np.sin(yaw)
+        local = np.stack([c * v[:, 0] + s * v[:, 1], -s * v[:, 0] + c * v[:, 1]], axis=1) / env.config.human_max_speed
+        live = set(env.agents)
+        return {
+            f"human_{j}": np.clip(local[j], -1, 1).astype(np.float32)
+            for j in range(env.n_humans)
+            if f"human_{j}" in live
+        }

@@ -1,0 +1,1 @@
+"""Evaluation: metrics (pure functions of recorded episodes), episode recording, runners and reports."""

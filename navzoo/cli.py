@@ -1,0 +1,128 @@
+"""The ``navzoo`` command line: demo, scene library, throughput."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+
+
+def _int_list(text: str) -> list[int]:
+    try:
+        values = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers such as 5,20,64, got {text!r}") from exc
+    if not values or any(v < 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected non-negative integers, got {text!r}")
+    return values
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from navzoo import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="navzoo",
+        description="navzoo: multi-agent human-aware robot navigation on PyBullet (PettingZoo).",
+    )
+    parser.add_argument("--version", action="version", version=f"navzoo {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    demo = sub.add_parser("demo", help="run a baseline robot in a crowd; write video, trajectory plot and metrics")
+    demo.add_argument("--scene", default=None, help="scene name (see `navzoo scenes`) or a scene file; default lobby")
+    demo.add_argument("--out", default="runs/demo", help="output folder (default runs/demo)")
+    demo.add_argument("--seed", type=int, default=0)
+    demo.add_argument("--policy", default="orca", choices=["orca", "pure_pursuit"], help="baseline robot controller")
+    demo.add_argument("--humans", type=int, default=None, help="number of pedestrians (default: the scene's)")
+    demo.add_argument("--no-video", action="store_true", help="skip the video")
+    demo.add_argument("--json", action="store_true", help="print the metrics as one JSON object on stdout")
+
+    scenes = sub.add_parser("scenes", help="list the scene library with sizes and free area")
+    scenes.add_argument("--json", action="store_true")
+
+    speed = sub.add_parser("speed", help="env throughput with kinematic crowds and its overhead over PyBullet")
+    speed.add_argument("--humans", type=_int_list, default=[5, 20, 64], help="crowd sizes (default 5,20,64)")
+    speed.add_argument("--steps", type=int, default=200)
+    speed.add_argument("--repeats", type=int, default=3)
+    speed.add_argument("--scene", default="station")
+    speed.add_argument("--crowd", default="sfm", choices=["sfm", "orca"])
+    speed.add_argument("--json", action="store_true")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 0
+    try:
+        if args.command == "demo":
+            return _demo(args)
+        if args.command == "scenes":
+            return _scenes(args)
+        if args.command == "speed":
+            return _speed(args)
+    except (ValueError, TypeError, FileNotFoundError) as exc:
+        print(f"navzoo {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"navzoo {args.command}: interrupted", file=sys.stderr)
+        return 130
+    parser.error(f"unknown command {args.command!r}")
+    return 2
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from navzoo.demo import DEFAULT_SCENE, run_demo
+
+    metrics = run_demo(
+        scene=args.scene or DEFAULT_SCENE, out=args.out, seed=args.seed, policy=args.policy,
+        n_humans=args.humans, video=not args.no_video, progress=not args.json,
+    )
+    if args.json:
+        print(json.dumps(metrics))
+        return 0
+    for r in metrics["robots"]:
+        print(f"{metrics['scene']}: {r['agent']} {r['event']} after {r['steps']} steps "
+              f"(path {r['path_length_m']:.1f} m, min gap to people {r['min_person_distance_m']:.2f} m)")
+    for name, path in metrics["files"].items():
+        if path:
+            print(f"  {name:16s} {path}")
+    return 0
+
+
+def _scenes(args: argparse.Namespace) -> int:
+    from navzoo.world.library import list_scenes, scene_info
+
+    infos = [scene_info(n) for n in list_scenes()]
+    if args.json:
+        print(json.dumps({"scenes": infos}))
+        return 0
+    print(f"{'scene':18s} {'size (m)':>12s} {'free m2':>9s} {'obstacles':>9s} {'people':>6s}  protocol")
+    for i in infos:
+        w, h = i["size_m"]
+        proto = i["protocol"] if isinstance(i["protocol"], str) else i["protocol"].get("type", "")
+        print(f"{i['name']:18s} {w:5.1f} x {h:4.1f} {i['free_area_m2']:9.1f} {i['n_obstacles']:9d} {i['default_humans']:6d}  {proto}")
+    return 0
+
+
+def _speed(args: argparse.Namespace) -> int:
+    from navzoo.benchmark.speed import run
+
+    result = run(args.humans, steps=args.steps, repeats=args.repeats, scene=args.scene, crowd=args.crowd)
+    if args.json:
+        print(json.dumps(result))
+        return 0
+    print(f"machine: {result['machine']}")
+    print(f"{'humans':>6s} {'env steps/s':>12s} {'agent steps/s':>14s} {'step ms':>8s} {'physics ms':>10s} "
+          f"{'physics frac':>12s} {'bare PyBullet ms':>16s} {'overhead':>8s}")
+    for r in result["results"]:
+        print(f"{r['humans']:6d} {r['env_steps_per_s']:12.1f} {r['agent_steps_per_s']:14.1f} {r['env_step_ms']:8.2f} "
+              f"{r['physics_ms_in_env']:10.2f} {r['physics_fraction']:12.2f} {r['bare_physics_ms']:16.2f} "
+              f"{r['overhead_ratio']:8.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,158 @@
+"""Configuration of a navzoo world: one frozen, validated dataclass.
+
+``NavConfig.from_dict`` rejects unknown keys with the list of valid ones, so a typo in a YAML file or
+a keyword argument never silently falls back to a default.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from navzoo.agents.robot import RobotSpec
+
+CrowdModel = Literal["sfm", "orca"]
+HumanModel = Literal["kinematic"]
+
+
+@dataclass(frozen=True)
+class NavConfig:
+    """Everything that defines a navzoo environment.
+
+    Attributes:
+        scene: scene name from the library (``navzoo scenes``) or a path to a YAML/JSON scene file.
+        n_robots: number of robots (agents ``robot_0..``).
+        n_humans: number of pedestrians (agents ``human_0..``); ``None`` = the scene's default.
+        robot: robot model and limits.
+        human_model: pedestrian body controller; ``"kinematic"`` (root follows the planar command,
+            joints play a walk cycle). The AMP joint controller plugs in here.
+        crowd_model: rule-based trajectory generator of frozen pedestrians (``"sfm"`` or ``"orca"``).
+        humans_see_robots: whether pedestrians react to robots (off = CrowdNav's invisible robot).
+        human_radius: pedestrians' disc radius for collisions and observations (m).
+        human_speed: (min, max) preferred walking speed, sampled per person (m/s).
+        human_max_speed: speed that a human action of norm 1 maps to (m/s).
+        dt: control period (s).
+        physics_substeps: PyBullet steps per control step.
+        time_limit: episode length (s); ``None`` = the scene's own limit.
+        goal_tolerance: a robot reaches its goal when closer than this (m); ``None`` = robot radius
+            (CrowdNav's rule, as the paper's reward).
+        min_goal_distance: minimum start-goal distance of sampled tasks (m).
+        k_neighbors: people/robots in each observation (K).
+        history: past steps per neighbour (T).
+        sensor_range: neighbours farther than this are masked out (m).
+        map_size: side of the local occupancy crop (m).
+        map_cells: cells per side of the local occupancy crop.
+        flat_obs: flatten the Dict observation into one Box (for simple learners).
+        path_spacing: spacing of A* waypoints (m).
+        waypoint_tolerance: a pedestrian moves on to its next waypoint within this distance (m).
+        grid_resolution: occupancy grid cell size (m).
+        max_episode_steps_override: hard cap on steps, mainly for tests; ``None`` = from time limit.
+    """
+
+    scene: str = "circle_crossing"
+    n_robots: int = 1
+    n_humans: int | None = None
+    robot: RobotSpec = field(default_factory=RobotSpec)
+    human_model: HumanModel = "kinematic"
+    crowd_model: CrowdModel = "sfm"
+    humans_see_robots: bool = True
+    human_radius: float = 0.3
+    human_speed: tuple[float, float] = (1.0, 1.4)
+    human_max_speed: float = 2.0
+    dt: float = 0.1
+    physics_substeps: int = 2
+    time_limit: float | None = None
+    goal_tolerance: float | None = None
+    min_goal_distance: float = 3.0
+    k_neighbors: int = 6
+    history: int = 8
+    sensor_range: float = 6.0
+    map_size: float = 4.8
+    map_cells: int = 32
+    flat_obs: bool = False
+    path_spacing: float = 0.5
+    waypoint_tolerance: float = 0.6
+    grid_resolution: float = 0.1
+    max_episode_steps_override: int | None = None
+
+    def __post_init__(self) -> None:
+        def bad(name: str, expected: str) -> ValueError:
+            return ValueError(f"NavConfig.{name} must be {expected}, got {getattr(self, name)!r}")
+
+        if not isinstance(self.scene, str) or not self.scene:
+            raise bad("scene", "a scene name or a path to a scene file")
+        if not _is_int(self.n_robots) or self.n_robots < 1:
+            raise bad("n_robots", "an integer >= 1")
+        if self.n_humans is not None and (not _is_int(self.n_humans) or self.n_humans < 0):
+            raise bad("n_humans", "None or an integer >= 0")
+        if not isinstance(self.robot, RobotSpec):
+            raise bad("robot", "a RobotSpec")
+        if self.human_model not in ("kinematic",):
+            raise bad("human_model", "'kinematic' (the AMP controller is not available in this version)")
+        if self.crowd_model not in ("sfm", "orca"):
+            raise bad("crowd_model", "'sfm' or 'orca'")
+        if not isinstance(self.humans_see_robots, bool):
+            raise bad("humans_see_robots", "a bool")
+        for name in ("human_radius", "human_max_speed", "dt", "min_goal_distance", "sensor_range", "map_size",
+                     "path_spacing", "waypoint_tolerance", "grid_resolution"):
+            if not _is_pos(getattr(self, name)):
+                raise bad(name, "a finite number > 0")
+        lo_hi = self.human_speed
+        if (not isinstance(lo_hi, (tuple, list)) or len(lo_hi) != 2 or not all(_is_pos(v) for v in lo_hi)
+                or lo_hi[0] > lo_hi[1] or lo_hi[1] > self.human_max_speed):
+            raise bad("human_speed", f"(min, max) with 0 < min <= max <= human_max_speed={self.human_max_speed}")
+        object.__setattr__(self, "human_speed", (float(lo_hi[0]), float(lo_hi[1])))
+        for name in ("physics_substeps", "k_neighbors", "history", "map_cells"):
+            if not _is_int(getattr(self, name)) or getattr(self, name) < 1:
+                raise bad(name, "an integer >= 1")
+        if self.time_limit is not None and not _is_pos(self.time_limit):
+            raise bad("time_limit", "None or a finite number > 0")
+        if self.goal_tolerance is not None and not _is_pos(self.goal_tolerance):
+            raise bad("goal_tolerance", "None or a finite number > 0")
+        if self.max_episode_steps_override is not None and (
+            not _is_int(self.max_episode_steps_override) or self.max_episode_steps_override < 1
+        ):
+            raise bad("max_episode_steps_override", "None or an integer >= 1")
+        if not isinstance(self.flat_obs, bool):
+            raise bad("flat_obs", "a bool")
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> NavConfig:
+        """Build a config from plain data (e.g. YAML), rejecting unknown keys by name."""
+        if not isinstance(data, dict):
+            raise TypeError(f"NavConfig.from_dict expects a dict, got {type(data).__name__}")
+        valid = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - valid)
+        if unknown:
+            raise ValueError(f"unknown NavConfig key(s) {unknown}; valid keys: {sorted(valid)}")
+        kwargs = dict(data)
+        if isinstance(kwargs.get("robot"), dict):
+            rvalid = {f.name for f in dataclasses.fields(RobotSpec)}
+            runknown = sorted(set(kwargs["robot"]) - rvalid)
+            if runknown:
+                raise ValueError(f"unknown RobotSpec key(s) {runknown}; valid keys: {sorted(rvalid)}")
+            kwargs["robot"] = RobotSpec(**kwargs["robot"])
+        if isinstance(kwargs.get("human_speed"), list):
+            kwargs["human_speed"] = tuple(kwargs["human_speed"])
+        return cls(**kwargs)
+
+    def replace(self, **changes: Any) -> NavConfig:
+        """A copy with some fields changed (validated like a new config)."""
+        valid = {f.name for f in dataclasses.fields(self)}
+        unknown = sorted(set(changes) - valid)
+        if unknown:
+            raise ValueError(f"unknown NavConfig key(s) {unknown}; valid keys: {sorted(valid)}")
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def _is_int(v: Any) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_pos(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0

@@ -1,0 +1,649 @@
+"""The navzoo ParallelEnv: robots and pedestrians as agents of one PyBullet world."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+import pybullet as p
+from gymnasium import spaces
+from pettingzoo import ParallelEnv
+
+from navzoo import sim
+from navzoo.agents.humanoid import HumanoidBodies
+from navzoo.agents.robot import RobotBodies, command_velocity, wrap_angle
+from navzoo.envs import observations as obs_terms
+from navzoo.envs.config import NavConfig
+from navzoo.envs.rewards import TERMS, RewardParams, navigation_reward
+from navzoo.world.builder import build_scene
+from navzoo.world.geometry import swept_circle_hits_segments
+from navzoo.world.library import get_scene
+from navzoo.world.occupancy import OccupancyGrid
+from navzoo.world.planner import AStarPlanner
+from navzoo.world.scene import Scene, load_scene
+from navzoo.world.tasks import TaskSampler
+
+RESET_OPTIONS = ("robot_starts", "robot_goals", "robot_yaws", "human_starts", "human_goals")
+
+
+class NavEnv(ParallelEnv):
+    """Crowd navigation in PyBullet: every robot and every pedestrian is an agent.
+
+    ## Description
+    Robots (differential-drive or holonomic bases, real PyBullet bodies) navigate to goals through a
+    scene of walls and furniture among pedestrians (15-body humanoids). Each agent has a goal and an
+    A* path on the scene's occupancy grid; pedestrians that reach their goal get a new one.
+
+    ## Agents
+    ``robot_0 .. robot_{R-1}``, then ``human_0 .. human_{H-1}``. Robots leave ``agents`` when they
+    reach their goal or collide; pedestrians stay until the episode ends. The episode ends for
+    everyone when no robot is left or at the time limit.
+
+    ## Action space
+    ``Box(-1, 1, (2,), float32)`` for every agent; finite values outside [-1, 1] are clipped and
+    counted in ``info[agent]["action_clipped"]``.
+
+    | agent | kinematics | a[0] | a[1] |
+    |---|---|---|---|
+    | robot | diff_drive | v / max_speed (m/s) | omega / max_turn_rate (rad/s) |
+    | robot | holonomic | v_x / max_speed, world frame | v_y / max_speed, world frame |
+    | human | kinematic | forward speed / human_max_speed, own frame | leftward speed / human_max_speed |
+
+    Commands are rate-limited by the robot's acceleration limits; holonomic and human commands are
+    capped to a norm of 1.
+
+    ## Observation space
+    ``Dict`` (or, with ``flat_obs=True``, the same entries flattened in this order into one Box):
+
+    | key | shape | content (agent frame: x forward, y left) |
+    |---|---|---|
+    | goal | (5,) | x_g, y_g (m), d_g (m), sin theta_g, cos theta_g |
+    | velocity | (3,) | v_x, v_y (m/s), omega (rad/s) |
+    | agents | (K, T, 7) | K nearest others over T steps: x, y, u, v, cos theta, sin theta, radius |
+    | agents_mask | (K, T) | 1 where the entry is a real, observed agent |
+    | map | (C, C) | local occupancy crop, 1 = occupied, robot at the centre, x forward = up |
+
+    ## Rewards
+    Robots: the paper's r_nav + r_omega (see :mod:`navzoo.envs.rewards`), each term in
+    ``info[agent]["reward/<term>"]``. Pedestrians: the same r_nav with their own goal (no omega
+    term); a pedestrian that reaches its goal gets +20 and a new goal.
+
+    ## Starting state
+    Sampled from the scene's spawn/goal regions or its protocol (circle/square crossing) by a seeded
+    sampler: free, reachable, at least ``min_goal_distance`` apart, not overlapping.
+    ``reset(options=...)`` accepts explicit ``robot_starts``, ``robot_goals``, ``robot_yaws``,
+    ``human_starts``, ``human_goals`` arrays.
+
+    ## Episode end
+    Termination (robots): goal reached (distance < goal tolerance), or collision with a person, an
+    obstacle or another robot (swept motion within the step, plus PyBullet contacts), or a NaN
+    physics state (``info["nan_state"]``). Truncation: the time limit.
+
+    ## Arguments
+    ``NavEnv(config=NavConfig(...), render_mode=None | "rgb_array" | "human", render_view=
+    "topdown" | "camera" | "both", **config_overrides)``.
+
+    ## Version history
+    v0: initial release.
+    """
+
+    metadata = {
+        "name": "navzoo_nav_v0",
+        "render_modes": ["rgb_array", "human"],
+        "render_fps": 10,
+        "is_parallelizable": True,
+    }
+
+    def __init__(
+        self,
+        config: NavConfig | None = None,
+        render_mode: str | None = None,
+        render_view: str = "topdown",
+        **overrides: Any,
+    ) -> None:
+        cfg = config if config is not None else NavConfig()
+        if not isinstance(cfg, NavConfig):
+            raise TypeError(f"config must be a NavConfig, got {type(cfg).__name__}")
+        if overrides:
+            cfg = cfg.replace(**overrides)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        if render_view not in ("topdown", "camera", "both"):
+            raise ValueError(f"render_view must be 'topdown', 'camera' or 'both', got {render_view!r}")
+        self.config = cfg
+        self.render_mode = render_mode
+        self.render_view = render_view
+        self.scene: Scene = _resolve_scene(cfg.scene)
+        self.n_robots = cfg.n_robots
+        self.n_humans = cfg.n_humans if cfg.n_humans is not None else int(self.scene.default_humans)
+        self.n_total = self.n_robots + self.n_humans
+        self.possible_agents = [f"robot_{i}" for i in range(self.n_robots)] + [f"human_{j}" for j in range(self.n_humans)]
+        self._index = {a: i for i, a in enumerate(self.possible_agents)}
+        self.agents: list[str] = []
+        self.time_limit = cfg.time_limit if cfg.time_limit is not None else float(self.scene.time_limit)
+        self.max_steps = cfg.max_episode_steps_override or max(1, int(round(self.time_limit / cfg.dt)))
+        self.goal_tolerance = cfg.goal_tolerance if cfg.goal_tolerance is not None else cfg.robot.radius
+        self.reward_params = RewardParams()
+
+        # Static world: grid, planners (one A* for robots and people, per radius), task sampler.
+        self.grid = OccupancyGrid.from_scene(self.scene, resolution=cfg.grid_resolution)
+        self.segments = self.scene.wall_segments(include_bounds=True)  # the scene edge is a wall too
+        self._planners: dict[float, AStarPlanner] = {}
+        self.radius = np.array([cfg.robot.radius] * self.n_robots + [cfg.human_radius] * self.n_humans)
+        self.is_robot = np.arange(self.n_total) < self.n_robots
+        self._samplers = {
+            "robot": TaskSampler(self.scene, self.grid, cfg.robot.radius),
+            "human": TaskSampler(self.scene, self.grid, cfg.human_radius),
+        }
+
+        # Spaces: built once, the same object returned on every call.
+        self._obs_space = self._build_observation_space()
+        self._act_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        self.observation_spaces = {a: self._obs_space for a in self.possible_agents}
+        self.action_spaces = {a: self._act_space for a in self.possible_agents}
+
+        # PyBullet world: one client per env, bodies built once and moved on reset.
+        self.client = sim.connect(gui=(render_mode == "human"))
+        p.setGravity(0, 0, -9.81, physicsClientId=self.client)
+        p.setTimeStep(cfg.dt / cfg.physics_substeps, physicsClientId=self.client)
+        self.bodies = build_scene(self.scene, self.client)
+        self.robots = RobotBodies(self.client, cfg.robot, self.n_robots)
+        self.humans = HumanoidBodies(self.client, self.n_humans)
+        self._body_kind: dict[int, str] = {}
+        for b in self.bodies.obstacle_ids:
+            self._body_kind[b] = "obstacle"
+        for b in self.robots.ids:
+            self._body_kind[b] = "robot"
+        for b in self.humans.ids:
+            self._body_kind[b] = "human"
+        self._saved_state = p.saveState(physicsClientId=self.client)
+
+        self._seeded = False
+        self._needs_reset = True
+        self.physics_time = 0.0  # seconds spent in stepSimulation, cumulative (for `navzoo speed`)
+        self._viewer_window = None
+
+    # ------------------------------------------------------------------ spaces
+    def _build_observation_space(self) -> spaces.Space:
+        cfg = self.config
+        k, t, c = cfg.k_neighbors, cfg.history, cfg.map_cells
+        B, V = obs_terms.POS_BOUND, obs_terms.VEL_BOUND
+        G = obs_terms.GOAL_BOUND
+        f32 = np.float32
+        goal = spaces.Box(np.array([-G, -G, 0, -1, -1], f32), np.array([G, G, 1.5 * G, 1, 1], f32), dtype=f32)
+        vel = spaces.Box(-V, V, shape=(3,), dtype=f32)
+        lo = np.broadcast_to(np.array([-B, -B, -V, -V, -1, -1, 0], f32), (k, t, 7)).copy()
+        hi = np.broadcast_to(np.array([B, B, V, V, 1, 1, 2.0], f32), (k, t, 7)).copy()
+        agents = spaces.Box(lo, hi, dtype=f32)
+        mask = spaces.Box(0.0, 1.0, shape=(k, t), dtype=f32)
+        local_map = spaces.Box(0.0, 1.0, shape=(c, c), dtype=f32)
+        self._dict_space = spaces.Dict(
+            {"goal": goal, "velocity": vel, "agents": agents, "agents_mask": mask, "map": local_map}
+        )
+        if cfg.flat_obs:
+            return spaces.flatten_space(self._dict_space)
+        return self._dict_space
+
+    def observation_space(self, agent: str) -> spaces.Space:
+        return self.observation_spaces[agent]
+
+    def action_space(self, agent: str) -> spaces.Space:
+        return self.action_spaces[agent]
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        if seed is not None or not self._seeded:
+            ss = np.random.SeedSequence(seed)
+            task_ss, crowd_ss, self_ss = ss.spawn(3)
+            self.rng_tasks = np.random.default_rng(task_ss)
+            self.rng_crowd = np.random.default_rng(crowd_ss)
+            self.np_random = np.random.default_rng(self_ss)
+            self._seeded = True
+        options = dict(options or {})
+        unknown = sorted(set(options) - set(RESET_OPTIONS))
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {unknown}; valid options: {list(RESET_OPTIONS)}")
+        cfg = self.config
+        p.restoreState(self._saved_state, physicsClientId=self.client)
+        for i in range(self.n_robots):
+            self.robots.restore(i)
+
+        R, H, N = self.n_robots, self.n_humans, self.n_total
+        r_start, r_goal = self._sample_or_take(options, "robot", R, None)
+        h_start, h_goal = self._sample_or_take(options, "human", H, (r_start, self.radius[:R], r_goal))
+        self.pos = np.concatenate([r_start, h_start]).reshape(N, 2).astype(np.float64)
+        self.goal = np.concatenate([r_goal, h_goal]).reshape(N, 2).astype(np.float64)
+        self.vel = np.zeros((N, 2))
+        self.omega = np.zeros(N)
+        self.cmd = np.zeros((R, 2))
+        self.paths: list[np.ndarray] = [self._plan(i, self.pos[i], self.goal[i]) for i in range(N)]
+        self.wp_index = np.zeros(N, dtype=int)
+        yaws = np.array([_heading_along(path, start) for path, start in zip(self.paths, self.pos)])
+        if "robot_yaws" in options:
+            yaws[:R] = _as_array(options["robot_yaws"], (R,), "robot_yaws")
+        self.yaw = yaws
+        lo, hi = cfg.human_speed
+        self.v_pref = np.concatenate([np.full(R, cfg.robot.max_speed), self.rng_crowd.uniform(lo, hi, H)])
+        self.alive = np.ones(N, dtype=bool)
+        self.d_goal = np.linalg.norm(self.goal - self.pos, axis=1)
+        self.shortest_path_length = np.array([_path_length(pth, s) for pth, s in zip(self.paths, self.pos)])
+        self.steps = 0
+        self.sim_time = 0.0
+        self.action_clips = np.zeros(N, dtype=int)
+        self.events: dict[str, str] = {}
+        self.goals_reached = np.zeros(N, dtype=int)
+
+        self.robots.reset(self.pos[:R], self.yaw[:R])
+        self.humans.reset(self.pos[R:], self.yaw[R:], self.rng_crowd.uniform(0, 1, H))
+        T = cfg.history
+        self.hist_pos = np.repeat(self.pos[None], T, axis=0)
+        self.hist_vel = np.zeros((T, N, 2))
+        self.hist_yaw = np.repeat(self.yaw[None], T, axis=0)
+        self.hist_valid = np.zeros(T, dtype=bool)
+        self.hist_valid[-1] = True
+
+        self.agents = list(self.possible_agents)
+        self._needs_reset = False
+        obs = self._observations(self.agents)
+        infos = {a: self._base_info(a) for a in self.agents}
+        return obs, infos
+
+    def _sample_or_take(self, options, kind, n, existing):
+        starts_key, goals_key = f"{kind}_starts", f"{kind}_goals"
+        if n == 0:
+            return np.zeros((0, 2)), np.zeros((0, 2))
+        if starts_key in options or goals_key in options:
+            if starts_key not in options or goals_key not in options:
+                raise ValueError(f"reset options {starts_key!r} and {goals_key!r} must be given together")
+            starts = _as_array(options[starts_key], (n, 2), starts_key)
+            goals = _as_array(options[goals_key], (n, 2), goals_key)
+            return starts, goals
+        ex_pos, ex_rad, ex_goal = existing if existing is not None else (None, None, None)
+        return self._samplers[kind].sample(
+            self.rng_tasks, n, kind, min_goal_dist=self.config.min_goal_distance,
+            existing_positions=ex_pos, existing_radii=ex_rad, existing_goals=ex_goal,
+        )
+
+    def _planner(self, radius: float) -> AStarPlanner:
+        if radius not in self._planners:
+            self._planners[radius] = AStarPlanner(self.grid, radius)
+        return self._planners[radius]
+
+    def _plan(self, i: int, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        path = self._planner(float(self.radius[i])).plan(start, goal, spacing=self.config.path_spacing)
+        if path is None or len(path) == 0:
+            # No grid path (e.g. explicit start/goal given inside an inflated area): walk straight.
+            return np.asarray(goal, dtype=np.float64).reshape(1, 2)
+        return np.asarray(path, dtype=np.float64)
+
+    # ------------------------------------------------------------------ step
+    def step(self, actions: dict[str, Any]):
+        if self._needs_reset:
+            raise RuntimeError("NavEnv.step() called before reset() (or after the episode ended); call reset() first")
+        act = self._validate_actions(actions)
+        cfg = self.config
+        R, dt = self.n_robots, cfg.dt
+        acting = list(self.agents)
+        acting_idx = np.array([self._index[a] for a in acting], dtype=int)
+        prev_pos = self.pos.copy()
+        d_goal_prev = self.d_goal.copy()
+
+        # Pedestrians (kinematic): the action is a velocity in the person's frame.
+        hum = np.arange(R, self.n_total)
+        if hum.size:
+            a_h = act[hum]
+            norm = np.linalg.norm(a_h, axis=1, keepdims=True)
+            a_h = np.where(norm > 1.0, a_h / np.maximum(norm, 1e-12), a_h)
+            c, s = np.cos(self.yaw[hum]), np.sin(self.yaw[hum])
+            v_world = cfg.human_max_speed * np.stack([c * a_h[:, 0] - s * a_h[:, 1], s * a_h[:, 0] + c * a_h[:, 1]], axis=1)
+            new_pos = self.pos[hum] + v_world * dt
+            # Scripted bodies do not collide with the scene in PyBullet, so a person whose step
+            # would cut through a wall stays put (and the map collision is reported in info).
+            blocked = (
+                swept_circle_hits_segments(self.pos[hum], new_pos, 0.5 * cfg.human_radius, self.segments)
+                if len(self.segments) else np.zeros(hum.size, dtype=bool)
+            )
+            new_pos[blocked] = self.pos[hum][blocked]
+            v_world[blocked] = 0.0
+            speed = np.linalg.norm(v_world, axis=1)
+            # Heading turns toward the walking direction (at most 4 rad/s), held when standing.
+            desired = np.where(speed > 0.05, np.arctan2(v_world[:, 1], v_world[:, 0]), self.yaw[hum])
+            dyaw = np.clip(wrap_angle(desired - self.yaw[hum]), -4.0 * dt, 4.0 * dt)
+            self.pos[hum] = new_pos
+            self.vel[hum] = v_world
+            self.omega[hum] = dyaw / dt
+            self.yaw[hum] = wrap_angle(self.yaw[hum] + dyaw)
+            self.humans.advance(speed, dt)
+            self.humans.pose(self.pos[hum], self.yaw[hum], speed)
+            self._human_blocked = blocked
+        else:
+            self._human_blocked = np.zeros(0, dtype=bool)
+
+        # Robots: limited velocity commands, applied at every physics substep.
+        robot_alive = self.alive[:R].copy()
+        self.cmd, world = command_velocity(act[:R], self.cmd, self.yaw[:R], cfg.robot, dt)
+        world[~robot_alive] = 0.0
+        t0 = time.perf_counter()
+        for _ in range(cfg.physics_substeps):
+            self.robots.apply_velocity(world, robot_alive)
+            p.stepSimulation(physicsClientId=self.client)
+        self.physics_time += time.perf_counter() - t0
+        r_pos, r_yaw, tilt = self.robots.read_state()
+        nan_state = bool(~np.isfinite(r_pos[robot_alive]).all() or ~np.isfinite(r_yaw[robot_alive]).all())
+        if not nan_state:
+            for i in np.flatnonzero(robot_alive):
+                if tilt[i]:
+                    self.robots.straighten(i, r_pos[i], r_yaw[i])
+                self.vel[i] = (r_pos[i] - prev_pos[i]) / dt
+                self.omega[i] = wrap_angle(r_yaw[i] - self.yaw[i]) / dt
+                self.pos[i] = r_pos[i]
+                self.yaw[i] = r_yaw[i]
+
+        # Events.
+        coll_kind = self._robot_collisions(prev_pos, robot_alive) if not nan_state else {}
+        self._advance_waypoints()
+        self.d_goal = np.linalg.norm(self.goal - self.pos, axis=1)
+        reached = np.zeros(self.n_total, dtype=bool)
+        reached[:R] = robot_alive & (self.d_goal[:R] < self.goal_tolerance)
+        collided = np.zeros(self.n_total, dtype=bool)
+        collided[list(coll_kind)] = True
+        d_obs = self._clearance()
+        human_reached = self._retarget_humans()
+        reached[R:] = human_reached
+        # After a re-target a pedestrian's distance jumps to its new goal: that step earns the goal
+        # reward, not a progress penalty, so its previous distance is taken as the new one.
+        d_prev = np.where(human_reached_mask(self.n_total, R, human_reached), self.d_goal, d_goal_prev)
+        rew, terms = navigation_reward(
+            self.d_goal, d_prev, d_obs, reached, collided, np.where(self.is_robot, self.omega, 0.0),
+            self.reward_params,
+        )
+
+        # Bookkeeping: history, time.
+        self.steps += 1
+        self.sim_time += dt
+        self.hist_pos = np.roll(self.hist_pos, -1, axis=0)
+        self.hist_vel = np.roll(self.hist_vel, -1, axis=0)
+        self.hist_yaw = np.roll(self.hist_yaw, -1, axis=0)
+        self.hist_valid = np.roll(self.hist_valid, -1)
+        self.hist_pos[-1], self.hist_vel[-1], self.hist_yaw[-1], self.hist_valid[-1] = self.pos, self.vel, self.yaw, True
+
+        terminated = np.zeros(self.n_total, dtype=bool)
+        terminated[:R] = robot_alive & (reached[:R] | collided[:R])
+        if nan_state:
+            terminated[acting_idx] = True
+        time_up = self.steps >= self.max_steps
+        robots_left = robot_alive & ~terminated[:R]
+        end_all = time_up or not robots_left.any()
+        truncated = np.zeros(self.n_total, dtype=bool)
+        if end_all:
+            truncated[acting_idx] = ~terminated[acting_idx]
+
+        for i in range(R):
+            if robot_alive[i] and terminated[i]:
+                self.alive[i] = False
+                self.events[self.possible_agents[i]] = (
+                    "goal" if reached[i] else f"collision_{coll_kind.get(i, 'obstacle')}" if collided[i] else "nan_state"
+                )
+        obs = self._observations(acting)
+        rewards, terms_out, infos, terminations, truncations = {}, {}, {}, {}, {}
+        for a, i in zip(acting, acting_idx):
+            rewards[a] = float(rew[i])
+            terminations[a] = bool(terminated[i])
+            truncations[a] = bool(truncated[i])
+            info = self._base_info(a)
+            for name in TERMS:
+                info[f"reward/{name}"] = float(terms[name][i])
+            if i < R:
+                info["event"] = self.events.get(a, "timeout" if truncated[i] else "running")
+                info["is_success"] = bool(reached[i])
+                info["collision"] = coll_kind.get(int(i), "")
+            else:
+                info["goal_reached"] = bool(reached[i])
+                info["map_blocked"] = bool(self._human_blocked[i - R]) if self.n_humans else False
+            if nan_state:
+                info["nan_state"] = True
+            infos[a] = info
+        for i in range(R):
+            if robot_alive[i] and terminated[i]:
+                self.robots.remove(i)
+        self.agents = [a for a in acting if not (terminations[a] or truncations[a])]
+        if not self.agents:
+            self._needs_reset = True
+        if self.render_mode == "human":
+            self.render()
+        return obs, rewards, terminations, truncations, infos
+
+    def _validate_actions(self, actions: dict[str, Any]) -> np.ndarray:
+        if not isinstance(actions, dict):
+            raise TypeError(f"actions must be a dict {{agent: action}}, got {type(actions).__name__}")
+        out = np.zeros((self.n_total, 2))
+        live = set(self.agents)
+        for agent in actions:
+            if agent not in self._index:
+                raise ValueError(f"unknown agent {agent!r} in actions; possible agents: {self.possible_agents}")
+            if agent not in live:
+                raise ValueError(f"agent {agent!r} is done (terminated or truncated) and cannot act; live agents: {self.agents}")
+        missing = [a for a in self.agents if a not in actions]
+        if missing:
+            raise ValueError(f"missing actions for live agent(s) {missing}")
+        for agent, a in actions.items():
+            try:
+                arr = np.asarray(a, dtype=np.float64)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"action of {agent!r} is not numeric: {a!r}") from exc
+            if arr.shape != (2,):
+                raise ValueError(f"action of {agent!r} must have shape (2,), got shape {arr.shape}")
+            if not np.isfinite(arr).all():
+                raise ValueError(f"action of {agent!r} contains NaN or inf: {arr.tolist()}")
+            i = self._index[agent]
+            clipped = np.clip(arr, -1.0, 1.0)
+            if np.any(clipped != arr):
+                self.action_clips[i] += 1
+            out[i] = clipped
+        return out
+
+    def _robot_collisions(self, prev_pos: np.ndarray, robot_alive: np.ndarray) -> dict[int, str]:
+        """Collisions of each live robot during the step: swept discs and PyBullet contacts."""
+        R = self.n_robots
+        out: dict[int, str] = {}
+        idx = np.flatnonzero(robot_alive)
+        if idx.size == 0:
+            return out
+        rr = self.radius[idx]
+        # People: the robot's motion relative to each person is a segment; test its distance to the
+        # person's centre (CrowdNav's swept test, so fast robots cannot tunnel through people).
+        if self.n_humans:
+            h = np.arange(R, self.n_total)
+            p0 = prev_pos[idx][:, None, :] - prev_pos[h][None, :, :]
+            p1 = self.pos[idx][:, None, :] - self.pos[h][None, :, :]
+            dmin = _segment_origin_distance(p0, p1)
+            hit = dmin < (rr[:, None] + self.radius[h][None, :])
+            for k, i in enumerate(idx):
+                if hit[k].any():
+                    out[int(i)] = "human"
+        # Other robots (both moving).
+        if idx.size > 1:
+            p0 = prev_pos[idx][:, None, :] - prev_pos[idx][None, :, :]
+            p1 = self.pos[idx][:, None, :] - self.pos[idx][None, :, :]
+            dmin = _segment_origin_distance(p0, p1)
+            np.fill_diagonal(dmin, np.inf)
+            hit = dmin < (rr[:, None] + rr[None, :])
+            for k, i in enumerate(idx):
+                if hit[k].any() and int(i) not in out:
+                    out[int(i)] = "robot"
+        # Obstacles: the swept disc against every wall edge.
+        if len(self.segments):
+            hit = swept_circle_hits_segments(prev_pos[idx], self.pos[idx], rr, self.segments)
+            for k, i in enumerate(idx):
+                if hit[k] and int(i) not in out:
+                    out[int(i)] = "obstacle"
+        # PyBullet contacts (the bodies' real shapes: arms, furniture heights).
+        for i in idx:
+            if int(i) in out:
+                continue
+            for body in self.robots.contacts(int(i)):
+                kind = self._body_kind.get(body)
+                if kind is not None:
+                    out[int(i)] = kind
+                    break
+        return out
+
+    def _clearance(self) -> np.ndarray:
+        """d_obs: smallest edge-to-edge distance of each agent to any other live agent or obstacle."""
+        vis = self.alive.copy()
+        d = np.linalg.norm(self.pos[:, None, :] - self.pos[None, :, :], axis=2) - self.radius[:, None] - self.radius[None, :]
+        d[:, ~vis] = np.inf
+        np.fill_diagonal(d, np.inf)
+        d_agents = d.min(axis=1) if self.n_total > 1 else np.full(self.n_total, np.inf)
+        d_map = self.grid.distance_at(self.pos) - self.radius
+        return np.minimum(d_agents, d_map)
+
+    def _advance_waypoints(self) -> None:
+        tol = self.config.waypoint_tolerance
+        for i in range(self.n_total):
+            path = self.paths[i]
+            while self.wp_index[i] < len(path) - 1 and np.linalg.norm(path[self.wp_index[i]] - self.pos[i]) < tol:
+                self.wp_index[i] += 1
+
+    def _retarget_humans(self) -> np.ndarray:
+        """Give pedestrians that reached their goal a new goal and path; returns who reached."""
+        R = self.n_robots
+        reached = np.zeros(self.n_humans, dtype=bool)
+        for j in range(self.n_humans):
+            i = R + j
+            if self.d_goal[i] < max(self.config.waypoint_tolerance, self.radius[i]):
+                reached[j] = True
+                self.goals_reached[i] += 1
+                goal = self._samplers["human"].sample_goal(self.rng_tasks, self.pos[i], "human",
+                                                            min_goal_dist=self.config.min_goal_distance)
+                self.goal[i] = goal
+                self.paths[i] = self._plan(i, self.pos[i], goal)
+                self.wp_index[i] = 0
+                self.d_goal[i] = float(np.linalg.norm(goal - self.pos[i]))
+        return reached
+
+    # ------------------------------------------------------------------ observations
+    def _observations(self, agents: list[str]) -> dict[str, Any]:
+        if not agents:
+            return {}
+        cfg = self.config
+        idx = np.array([self._index[a] for a in agents], dtype=int)
+        goal = obs_terms.goal_features(self.pos[idx], self.yaw[idx], self.goal[idx])
+        vel = obs_terms.velocity_features(self.vel[idx], self.yaw[idx], self.omega[idx])
+        feats, mask = obs_terms.neighbor_features(
+            self.hist_pos, self.hist_vel, self.hist_yaw, self.hist_valid, self.radius, self.alive, idx,
+            cfg.k_neighbors, cfg.sensor_range,
+        )
+        maps = np.stack([self.grid.crop(self.pos[i], self.yaw[i], cfg.map_size, cfg.map_cells) for i in idx])
+        out = {}
+        for n, a in enumerate(agents):
+            o = {
+                "goal": goal[n].astype(np.float32),
+                "velocity": vel[n].astype(np.float32),
+                "agents": feats[n],
+                "agents_mask": mask[n],
+                "map": maps[n].astype(np.float32),
+            }
+            out[a] = spaces.flatten(self._dict_space, o).astype(np.float32) if cfg.flat_obs else o
+        return out
+
+    def _base_info(self, agent: str) -> dict[str, Any]:
+        i = self._index[agent]
+        return {"action_clipped": int(self.action_clips[i]), "time": float(self.sim_time)}
+
+    # ------------------------------------------------------------------ state for controllers
+    def next_waypoints(self) -> np.ndarray:
+        """(N, 2) current A* waypoint of every agent (its goal once the path is used up)."""
+        return np.stack([self.paths[i][min(self.wp_index[i], len(self.paths[i]) - 1)] for i in range(self.n_total)])
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """A copy of the world's planar state arrays (for loggers, metrics and controllers)."""
+        return {
+            "pos": self.pos.copy(), "vel": self.vel.copy(), "yaw": self.yaw.copy(), "omega": self.omega.copy(),
+            "goal": self.goal.copy(), "radius": self.radius.copy(), "alive": self.alive.copy(),
+            "time": np.array(self.sim_time),
+        }
+
+    # ------------------------------------------------------------------ render / close
+    def render(self):
+        from navzoo.envs.render import camera_view, draw_topdown
+
+        if self.render_mode is None:
+            gymnasium.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' to NavEnv")
+            return None
+        if self.render_mode == "human":
+            # The PyBullet GUI shows the world itself; keep the camera on the first robot.
+            if self.n_robots:
+                x, y = self.pos[0]
+                p.resetDebugVisualizerCamera(8.0, 0.0, -60.0, [x, y, 0.0], physicsClientId=self.client)
+            return None
+        if self._needs_reset and not hasattr(self, "pos"):
+            raise RuntimeError("render() called before reset()")
+        views = []
+        if self.render_view in ("topdown", "both"):
+            views.append(draw_topdown(self))
+        if self.render_view in ("camera", "both"):
+            views.append(camera_view(self, height=views[0].shape[0] if views else 480))
+        if len(views) == 1:
+            return views[0]
+        return np.concatenate(views, axis=1)
+
+    def close(self) -> None:
+        if getattr(self, "client", None) is not None:
+            sim.disconnect(self.client)
+            self.client = None
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001 - interpreter shutdown
+            pass
+
+
+def human_reached_mask(n_total: int, n_robots: int, human_reached: np.ndarray) -> np.ndarray:
+    m = np.zeros(n_total, dtype=bool)
+    m[n_robots:] = human_reached
+    return m
+
+
+def _segment_origin_distance(p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
+    """Distance from the origin to segments p0->p1 (arrays (..., 2))."""
+    d = p1 - p0
+    dd = np.sum(d * d, axis=-1)
+    t = np.clip(-np.sum(p0 * d, axis=-1) / np.maximum(dd, 1e-12), 0.0, 1.0)
+    closest = p0 + t[..., None] * d
+    return np.linalg.norm(closest, axis=-1)
+
+
+def _heading_along(path: np.ndarray, start: np.ndarray) -> float:
+    for wp in path:
+        d = wp - start
+        if np.hypot(*d) > 1e-3:
+            return float(np.arctan2(d[1], d[0]))
+    return 0.0
+
+
+def _path_length(path: np.ndarray, start: np.ndarray) -> float:
+    pts = np.vstack([start[None], path])
+    return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+
+
+def _as_array(value: Any, shape: tuple[int, ...], name: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.shape != shape:
+        raise ValueError(f"reset option {name!r} must have shape {shape}, got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"reset option {name!r} contains NaN or inf")
+    return arr
+
+
+def _resolve_scene(scene: str) -> Scene:
+    path = Path(scene)
+    if path.suffix.lower() in (".yaml", ".yml", ".json") or path.exists():
+        if not path.exists():
+            raise ValueError(f"scene file {scene!r} does not exist")
+        return load_scene(path)
+    return get_scene(scene)

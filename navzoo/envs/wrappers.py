@@ -1,0 +1,132 @@
+"""Wrappers: freeze a set of agents under a fixed policy, and a single-robot Gymnasium view."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from typing import Any
+
+import gymnasium
+from pettingzoo import ParallelEnv
+
+from navzoo.agents.policy import Policy
+from navzoo.envs.nav_env import NavEnv
+
+
+class FrozenAgents(ParallelEnv):
+    """Owns a fixed policy for some agents, feeds their actions each step and hides them.
+
+    The learner sees only the other agents: ``possible_agents``, ``agents``, spaces, observations,
+    rewards and infos exclude the frozen ones. Typical use: pedestrians frozen on social force while
+    robots learn (``navzoo.make`` does this), or robots frozen on a trained policy while pedestrians
+    learn.
+
+    Args:
+        env: the env to wrap (a :class:`NavEnv` or a wrapper of one).
+        frozen: names of the frozen agents, or a predicate on agent names.
+        policy: acts for the frozen agents (see :class:`navzoo.agents.policy.Policy`).
+    """
+
+    def __init__(self, env: ParallelEnv, frozen: Iterable[str] | Callable[[str], bool], policy: Policy) -> None:
+        self.env = env
+        names = list(env.possible_agents)
+        if callable(frozen):
+            self.frozen = frozenset(a for a in names if frozen(a))
+        else:
+            self.frozen = frozenset(frozen)
+            unknown = sorted(self.frozen - set(names))
+            if unknown:
+                raise ValueError(f"cannot freeze unknown agent(s) {unknown}; possible agents: {names}")
+        if not isinstance(policy, Policy):
+            raise TypeError(f"policy must implement reset(env) and act(observations, env), got {type(policy).__name__}")
+        self.policy = policy
+        self.possible_agents = [a for a in names if a not in self.frozen]
+        self.metadata = env.metadata
+        self._frozen_obs: dict[str, Any] = {}
+
+    @property
+    def unwrapped(self) -> NavEnv:
+        return self.env.unwrapped
+
+    @property
+    def agents(self) -> list[str]:
+        return [a for a in self.env.agents if a not in self.frozen]
+
+    @property
+    def render_mode(self) -> str | None:
+        return self.env.render_mode
+
+    def observation_space(self, agent: str):
+        return self.env.observation_space(agent)
+
+    def action_space(self, agent: str):
+        return self.env.action_space(agent)
+
+    def _split(self, d: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+        mine = {a: v for a, v in d.items() if a not in self.frozen}
+        theirs = {a: v for a, v in d.items() if a in self.frozen}
+        return mine, theirs
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        obs, infos = self.env.reset(seed=seed, options=options)
+        self.policy.reset(self.unwrapped)
+        obs, self._frozen_obs = self._split(obs)
+        return obs, self._split(infos)[0]
+
+    def step(self, actions: dict[str, Any]):
+        if not isinstance(actions, dict):
+            raise TypeError(f"actions must be a dict {{agent: action}}, got {type(actions).__name__}")
+        clash = sorted(set(actions) & self.frozen)
+        if clash:
+            raise ValueError(f"agent(s) {clash} are frozen (driven by {type(self.policy).__name__}); do not pass their actions")
+        live_frozen = {a: o for a, o in self._frozen_obs.items() if a in self.env.agents}
+        full = dict(actions)
+        full.update(self.policy.act(live_frozen, self.unwrapped) if live_frozen else {})
+        obs, rew, term, trunc, infos = self.env.step(full)
+        obs, self._frozen_obs = self._split(obs)
+        return obs, self._split(rew)[0], self._split(term)[0], self._split(trunc)[0], self._split(infos)[0]
+
+    def render(self):
+        return self.env.render()
+
+    def close(self) -> None:
+        self.env.close()
+
+
+class SingleRobotEnv(gymnasium.Env):
+    """A Gymnasium view of one robot in a PettingZoo navzoo env whose other agents are all frozen.
+
+    Args:
+        env: a parallel env with exactly one learnable agent (e.g. ``navzoo.make(...)`` with one robot).
+    """
+
+    def __init__(self, env: ParallelEnv) -> None:
+        if len(env.possible_agents) != 1:
+            raise ValueError(
+                f"SingleRobotEnv needs exactly one learnable agent, got {env.possible_agents}; "
+                "freeze the others with FrozenAgents (navzoo.make does this for pedestrians)"
+            )
+        self.env = env
+        self.agent = env.possible_agents[0]
+        self.observation_space = env.observation_space(self.agent)
+        self.action_space = env.action_space(self.agent)
+        self.metadata = dict(env.metadata)
+        self.render_mode = env.render_mode
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        obs, infos = self.env.reset(seed=seed, options=options)
+        return obs[self.agent], infos[self.agent]
+
+    def step(self, action):
+        obs, rew, term, trunc, infos = self.env.step({self.agent: action})
+        return obs[self.agent], rew[self.agent], term[self.agent], trunc[self.agent], infos[self.agent]
+
+    def render(self):
+        return self.env.render()
+
+    def close(self) -> None:
+        self.env.close()
+
+    @property
+    def unwrapped_nav(self) -> NavEnv:
+        return self.env.unwrapped

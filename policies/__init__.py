@@ -1,0 +1,1 @@
+"""Trained policies shipped with navzoo, one folder each (weights, config, model card)."""
