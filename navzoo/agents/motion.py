@@ -129,7 +129,8 @@ def sample_cycle(cycle: WalkCycle, phase: np.ndarray, gait: np.ndarray) -> tuple
     stand_h = float(cycle.root_height.max())
     h = ((1 - a[:, 0]) * cycle.root_height[i0] + a[:, 0] * cycle.root_height[i1]) * g[:, 0] + stand_h * (1 - g[:, 0])
     tilt = _nlerp(cycle.root_tilt[i0], cycle.root_tilt[i1], a)
-    tilt = _nlerp(np.broadcast_to(_IDENTITY, tilt.shape), tilt, g)
+    # Standing upright: the y-up -> z-up rotation alone, no sway.
+    tilt = _nlerp(np.broadcast_to(_Y_UP_TO_Z_UP.as_quat(), tilt.shape), tilt, g)
     return sph, rev, h, tilt
 
 

@@ -184,6 +184,10 @@ class RobotBodies:
         p.resetBasePositionAndOrientation(body, [float(xy[0]), float(xy[1]), self._z], quat, physicsClientId=self.client)
         p.resetBaseVelocity(body, [lin[0], lin[1], 0.0], [0.0, 0.0, ang[2]], physicsClientId=self.client)
 
-    def contacts(self, i: int) -> list[int]:
-        """Body ids touching robot i (after the last physics step)."""
-        return [c[2] for c in p.getContactPoints(bodyA=self.ids[i], physicsClientId=self.client)]
+    def contacts(self, i: int, tolerance: float = 1e-3) -> list[int]:
+        """Body ids touching robot i after the last physics step.
+
+        PyBullet's contact manifold also keeps points that are up to its contact margin *apart*
+        (positive distance): only points at distance <= ``tolerance`` count as touching.
+        """
+        return [c[2] for c in p.getContactPoints(bodyA=self.ids[i], physicsClientId=self.client) if c[8] <= tolerance]

@@ -46,6 +46,9 @@ class NavConfig:
         map_cells: cells per side of the local occupancy crop.
         flat_obs: flatten the Dict observation into one Box (for simple learners).
         path_spacing: spacing of A* waypoints (m).
+        path_clearance: extra inflation beyond the agent's radius when planning (m), so that paths
+            keep a natural distance from walls and corners (falls back to the bare radius where a
+            passage is too narrow for it).
         waypoint_tolerance: a pedestrian moves on to its next waypoint within this distance (m).
         grid_resolution: occupancy grid cell size (m).
         max_episode_steps_override: hard cap on steps, mainly for tests; ``None`` = from time limit.
@@ -73,6 +76,7 @@ class NavConfig:
     map_cells: int = 32
     flat_obs: bool = False
     path_spacing: float = 0.5
+    path_clearance: float = 0.2
     waypoint_tolerance: float = 0.6
     grid_resolution: float = 0.1
     max_episode_steps_override: int | None = None
@@ -107,6 +111,8 @@ class NavConfig:
         for name in ("physics_substeps", "k_neighbors", "history", "map_cells"):
             if not _is_int(getattr(self, name)) or getattr(self, name) < 1:
                 raise bad(name, "an integer >= 1")
+        if not (_is_pos(self.path_clearance) or self.path_clearance == 0):
+            raise bad("path_clearance", "a finite number >= 0")
         if self.time_limit is not None and not _is_pos(self.time_limit):
             raise bad("time_limit", "None or a finite number > 0")
         if self.goal_tolerance is not None and not _is_pos(self.goal_tolerance):

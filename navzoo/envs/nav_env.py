@@ -18,13 +18,17 @@ from navzoo.agents.robot import RobotBodies, command_velocity, wrap_angle
 from navzoo.envs import observations as obs_terms
 from navzoo.envs.config import NavConfig
 from navzoo.envs.rewards import TERMS, RewardParams, navigation_reward
-from navzoo.world.builder import build_scene
+from navzoo.world.builder import GROUP_ROBOT, GROUP_STATIC, build_scene
 from navzoo.world.geometry import swept_circle_hits_segments
 from navzoo.world.library import get_scene
 from navzoo.world.occupancy import OccupancyGrid
 from navzoo.world.planner import AStarPlanner
 from navzoo.world.scene import Scene, load_scene
 from navzoo.world.tasks import TaskSampler
+
+# Swept tests use this slack: ORCA-like controllers drive exactly onto the boundary of the
+# collision disc, and floating-point round-off must not turn a graze at 0.6 m into a collision.
+COLLISION_TOLERANCE = 1e-4  # m
 
 RESET_OPTIONS = ("robot_starts", "robot_goals", "robot_yaws", "human_starts", "human_goals")
 
@@ -150,6 +154,13 @@ class NavEnv(ParallelEnv):
         p.setGravity(0, 0, -9.81, physicsClientId=self.client)
         p.setTimeStep(cfg.dt / cfg.physics_substeps, physicsClientId=self.client)
         self.bodies = build_scene(self.scene, self.client)
+        # PyBullet pairs collide when *either* body's group matches the other's mask (filter mode
+        # OR), so the scene's bodies must leave the kinematic humans out of their mask: scripted
+        # people do not collide with the scene or each other, only with robots.
+        for body in self.bodies.body_ids:
+            for link in range(-1, p.getNumJoints(body, physicsClientId=self.client)):
+                p.setCollisionFilterGroupMask(body, link, GROUP_STATIC, GROUP_STATIC | GROUP_ROBOT,
+                                              physicsClientId=self.client)
         self.robots = RobotBodies(self.client, cfg.robot, self.n_robots)
         self.humans = HumanoidBodies(self.client, self.n_humans)
         self._body_kind: dict[int, str] = {}
@@ -205,7 +216,9 @@ class NavEnv(ParallelEnv):
         options = dict(options or {})
         unknown = sorted(set(options) - set(RESET_OPTIONS))
         if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; valid options: {list(RESET_OPTIONS)}")
+            # PettingZoo's conformance test passes an arbitrary option, so unknown keys are reported,
+            # not fatal; malformed values of known keys are errors.
+            gymnasium.logger.warn(f"ignoring unknown reset option(s) {unknown}; valid options: {list(RESET_OPTIONS)}")
         cfg = self.config
         p.restoreState(self._saved_state, physicsClientId=self.client)
         for i in range(self.n_robots):
@@ -221,6 +234,7 @@ class NavEnv(ParallelEnv):
         self.cmd = np.zeros((R, 2))
         self.paths: list[np.ndarray] = [self._plan(i, self.pos[i], self.goal[i]) for i in range(N)]
         self.wp_index = np.zeros(N, dtype=int)
+        self._advance_waypoints()
         yaws = np.array([_heading_along(path, start) for path, start in zip(self.paths, self.pos)])
         if "robot_yaws" in options:
             yaws[:R] = _as_array(options["robot_yaws"], (R,), "robot_yaws")
@@ -273,7 +287,12 @@ class NavEnv(ParallelEnv):
         return self._planners[radius]
 
     def _plan(self, i: int, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
-        path = self._planner(float(self.radius[i])).plan(start, goal, spacing=self.config.path_spacing)
+        path = None
+        if self.config.path_clearance > 0:
+            padded = float(self.radius[i]) + self.config.path_clearance
+            path = self._planner(padded).plan(start, goal, spacing=self.config.path_spacing)
+        if path is None:
+            path = self._planner(float(self.radius[i])).plan(start, goal, spacing=self.config.path_spacing)
         if path is None or len(path) == 0:
             # No grid path (e.g. explicit start/goal given inside an inflated area): walk straight.
             return np.asarray(goal, dtype=np.float64).reshape(1, 2)
@@ -302,10 +321,7 @@ class NavEnv(ParallelEnv):
             new_pos = self.pos[hum] + v_world * dt
             # Scripted bodies do not collide with the scene in PyBullet, so a person whose step
             # would cut through a wall stays put (and the map collision is reported in info).
-            blocked = (
-                swept_circle_hits_segments(self.pos[hum], new_pos, 0.5 * cfg.human_radius, self.segments)
-                if len(self.segments) else np.zeros(hum.size, dtype=bool)
-            )
+            blocked = self._swept_hits_walls(self.pos[hum], new_pos, np.full(hum.size, 0.5 * cfg.human_radius))
             new_pos[blocked] = self.pos[hum][blocked]
             v_world[blocked] = 0.0
             speed = np.linalg.norm(v_world, axis=1)
@@ -460,7 +476,7 @@ class NavEnv(ParallelEnv):
             p0 = prev_pos[idx][:, None, :] - prev_pos[h][None, :, :]
             p1 = self.pos[idx][:, None, :] - self.pos[h][None, :, :]
             dmin = _segment_origin_distance(p0, p1)
-            hit = dmin < (rr[:, None] + self.radius[h][None, :])
+            hit = dmin < (rr[:, None] + self.radius[h][None, :]) - COLLISION_TOLERANCE
             for k, i in enumerate(idx):
                 if hit[k].any():
                     out[int(i)] = "human"
@@ -470,13 +486,13 @@ class NavEnv(ParallelEnv):
             p1 = self.pos[idx][:, None, :] - self.pos[idx][None, :, :]
             dmin = _segment_origin_distance(p0, p1)
             np.fill_diagonal(dmin, np.inf)
-            hit = dmin < (rr[:, None] + rr[None, :])
+            hit = dmin < (rr[:, None] + rr[None, :]) - COLLISION_TOLERANCE
             for k, i in enumerate(idx):
                 if hit[k].any() and int(i) not in out:
                     out[int(i)] = "robot"
         # Obstacles: the swept disc against every wall edge.
         if len(self.segments):
-            hit = swept_circle_hits_segments(prev_pos[idx], self.pos[idx], rr, self.segments)
+            hit = self._swept_hits_walls(prev_pos[idx], self.pos[idx], rr - COLLISION_TOLERANCE)
             for k, i in enumerate(idx):
                 if hit[k] and int(i) not in out:
                     out[int(i)] = "obstacle"
@@ -489,6 +505,23 @@ class NavEnv(ParallelEnv):
                 if kind is not None:
                     out[int(i)] = kind
                     break
+        return out
+
+    def _swept_hits_walls(self, p0: np.ndarray, p1: np.ndarray, radius: np.ndarray) -> np.ndarray:
+        """Whether discs moving straight from p0 to p1 touch any wall edge (exact test).
+
+        The exact segment test is only run for agents that could reach a wall in this step: the
+        occupancy distance field and the distance to the scene's edge rule out the others cheaply.
+        """
+        out = np.zeros(len(p0), dtype=bool)
+        if len(self.segments) == 0 or len(p0) == 0:
+            return out
+        xmin, ymin, xmax, ymax = self.scene.bounds
+        reach = np.linalg.norm(p1 - p0, axis=1) + radius + 2.0 * self.grid.resolution
+        to_edge = np.minimum.reduce([p0[:, 0] - xmin, xmax - p0[:, 0], p0[:, 1] - ymin, ymax - p0[:, 1]])
+        near = (self.grid.distance_at(p0) <= reach) | (to_edge <= reach)
+        if near.any():
+            out[near] = swept_circle_hits_segments(p0[near], p1[near], radius[near], self.segments)
         return out
 
     def _clearance(self) -> np.ndarray:

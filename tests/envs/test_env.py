@@ -123,7 +123,7 @@ def test_frozen_agents_hide_and_drive_pedestrians():
     for _ in range(20):
         env.step({"robot_0": np.zeros(2, np.float32)})
     moved = np.linalg.norm(nav.pos[1:] - start, axis=1)
-    assert (moved > 1.0).all(), moved
+    assert (moved > 0.5).all() and moved.mean() > 1.0, moved
     env.close()
 
 
@@ -145,8 +145,8 @@ def test_robot_collides_with_person_and_obstacle_and_reaches_goal():
     env = NavEnv(NavConfig(scene="corridor", n_humans=1))
     # Person standing still straight ahead.
     obs, _ = env.reset(seed=0, options={
-        "robot_starts": [[-4.0, 0.0]], "robot_goals": [[4.0, 0.0]], "robot_yaws": [0.0],
-        "human_starts": [[-2.0, 0.0]], "human_goals": [[-2.0, 0.0]],
+        "robot_starts": [[4.0, 1.7]], "robot_goals": [[12.0, 1.7]], "robot_yaws": [0.0],
+        "human_starts": [[6.5, 1.7]], "human_goals": [[6.5, 1.7]],
     })
     ev = None
     for _ in range(60):
@@ -158,14 +158,13 @@ def test_robot_collides_with_person_and_obstacle_and_reaches_goal():
     assert ev["reward/collision"] == -20.0 and rew["robot_0"] <= -20.0
     assert "robot_0" not in env.agents
 
-    # Into the corridor wall (y = +1.5 m in the corridor scene is a wall).
-    wall_y = env.scene.bounds[3]
+    # Into the corridor's north wall (its face is at y = 3.2 m).
     env.reset(seed=0, options={
-        "robot_starts": [[0.0, 0.0]], "robot_goals": [[4.0, 0.0]], "robot_yaws": [np.pi / 2],
-        "human_starts": [[-6.0, 0.0]], "human_goals": [[-6.0, 0.0]],
+        "robot_starts": [[10.0, 1.7]], "robot_goals": [[16.0, 1.7]], "robot_yaws": [np.pi / 2],
+        "human_starts": [[3.0, 1.0]], "human_goals": [[3.0, 1.0]],
     })
     ev = None
-    for _ in range(int(wall_y / 0.05) + 60):
+    for _ in range(60):
         obs, rew, term, trunc, info = env.step({"robot_0": np.array([1.0, 0.0]), "human_0": np.zeros(2)})
         if term.get("robot_0"):
             ev = info["robot_0"]
@@ -174,8 +173,8 @@ def test_robot_collides_with_person_and_obstacle_and_reaches_goal():
 
     # Drive straight to a goal 2 m ahead.
     env.reset(seed=0, options={
-        "robot_starts": [[0.0, 0.0]], "robot_goals": [[2.0, 0.0]], "robot_yaws": [0.0],
-        "human_starts": [[-6.0, 0.0]], "human_goals": [[-6.0, 0.0]],
+        "robot_starts": [[8.0, 1.7]], "robot_goals": [[10.0, 1.7]], "robot_yaws": [0.0],
+        "human_starts": [[3.0, 1.0]], "human_goals": [[3.0, 1.0]],
     })
     total = 0.0
     for _ in range(60):
@@ -240,8 +239,11 @@ def test_config_validation_messages():
         navzoo.make("navzoo/Nope-v0")
     with pytest.raises(ValueError, match="scene file"):
         navzoo.make(scene="does/not/exist.yaml")
-    with pytest.raises(ValueError, match="unknown reset option"):
+    with pytest.warns(UserWarning, match="unknown reset option.*robot_start"):
         navzoo.make("navzoo/Doorway-v0", n_humans=1).reset(seed=0, options={"robot_start": [0, 0]})
+    with pytest.raises(ValueError, match="robot_starts.*shape"):
+        navzoo.make("navzoo/Doorway-v0", n_humans=1).reset(
+            seed=0, options={"robot_starts": [0, 0], "robot_goals": [[1, 1]]})
 
 
 def test_bad_scene_file_rejected(tmp_path):
@@ -253,8 +255,8 @@ def test_bad_scene_file_rejected(tmp_path):
         navzoo.make(scene=str(bad))
 
 
-def test_multi_robot_episode_with_orca_baseline_and_holonomic():
-    env = navzoo.make("navzoo/CircleCrossing-v0", n_robots=3, n_humans=5)
+def test_multi_robot_episode_with_orca_baseline():
+    env = navzoo.make("navzoo/Lobby-v0", n_robots=3, n_humans=5)
     obs, _ = env.reset(seed=4)
     pol = OrcaRobotPolicy()
     events = {}
@@ -307,7 +309,11 @@ def test_sb3_ppo_smoke_through_supersuit():
     vec = ss.pettingzoo_env_to_vec_env_v1(env)
     vec = ss.concat_vec_envs_v1(vec, 2, num_cpus=0, base_class="stable_baselines3")
     vec = VecCheckNan(vec, raise_exception=True)
-    model = PPO("MlpPolicy", vec, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu", verbose=0)
+    # SuperSuit's ConcatVecEnv has no seed(): seed torch/numpy here and the env copies by reset.
+    from stable_baselines3.common.utils import set_random_seed
+
+    set_random_seed(0)
+    model = PPO("MlpPolicy", vec, n_steps=64, batch_size=64, n_epochs=1, device="cpu", verbose=0)
     model.learn(total_timesteps=256)
     assert model.num_timesteps >= 256
     vec.close()
