@@ -21,6 +21,7 @@ demo: install
 	$(VENV)/bin/navzoo demo --out runs/demo
 
 test: install-test
+	$(VENV)/bin/ruff check navzoo tests policies
 	$(PY) -m pytest -n 2 --durations=15 -q
 
 lint:

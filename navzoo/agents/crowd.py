@@ -60,6 +60,7 @@ class CrowdPolicy:
             return social_force_velocities(
                 pos, vel, pref, rad, vmax, env.config.dt, self.sfm_params, env.segments,
                 others_pos=env.pos[robots], others_vel=env.vel[robots], others_radius=env.radius[robots],
+                segment_groups=env.segment_groups,
             )
         all_pos = np.concatenate([pos, env.pos[robots]])
         all_vel = np.concatenate([vel, env.vel[robots]])

@@ -138,7 +138,7 @@ class RobotBodies:
 
     def reset(self, pos: np.ndarray, yaw: np.ndarray) -> None:
         """Place robot i at ``pos[i]`` facing ``yaw[i]``, at rest."""
-        for i, body in enumerate(self.ids):
+        for i in range(self.n):
             self.place(i, pos[i], float(yaw[i]))
 
     def place(self, i: int, xy: np.ndarray, yaw: float) -> None:

@@ -135,6 +135,12 @@ class NavEnv(ParallelEnv):
         # Static world: grid, planners (one A* for robots and people, per radius), task sampler.
         self.grid = OccupancyGrid.from_scene(self.scene, resolution=cfg.grid_resolution)
         self.segments = self.scene.wall_segments(include_bounds=True)  # the scene edge is a wall too
+        # The obstacle owning each wall edge (each scene-edge side is a wall of its own): crowd
+        # models push people once per obstacle, from its nearest point.
+        owner = np.array(self.scene.wall_segment_owner(include_bounds=True))
+        edge = owner < 0
+        owner[edge] = owner.max(initial=-1) + 1 + np.arange(int(edge.sum()))
+        self.segment_groups = owner
         self._planners: dict[float, AStarPlanner] = {}
         self.radius = np.array([cfg.robot.radius] * self.n_robots + [cfg.human_radius] * self.n_humans)
         self.is_robot = np.arange(self.n_total) < self.n_robots
@@ -235,7 +241,7 @@ class NavEnv(ParallelEnv):
         self.paths: list[np.ndarray] = [self._plan(i, self.pos[i], self.goal[i]) for i in range(N)]
         self.wp_index = np.zeros(N, dtype=int)
         self._advance_waypoints()
-        yaws = np.array([_heading_along(path, start) for path, start in zip(self.paths, self.pos)])
+        yaws = np.array([_heading_along(path, start) for path, start in zip(self.paths, self.pos, strict=True)])
         if "robot_yaws" in options:
             yaws[:R] = _as_array(options["robot_yaws"], (R,), "robot_yaws")
         self.yaw = yaws
@@ -243,7 +249,7 @@ class NavEnv(ParallelEnv):
         self.v_pref = np.concatenate([np.full(R, cfg.robot.max_speed), self.rng_crowd.uniform(lo, hi, H)])
         self.alive = np.ones(N, dtype=bool)
         self.d_goal = np.linalg.norm(self.goal - self.pos, axis=1)
-        self.shortest_path_length = np.array([_path_length(pth, s) for pth, s in zip(self.paths, self.pos)])
+        self.shortest_path_length = np.array([_path_length(pth, s) for pth, s in zip(self.paths, self.pos, strict=True)])
         self.steps = 0
         self.sim_time = 0.0
         self.action_clips = np.zeros(N, dtype=int)
@@ -404,8 +410,8 @@ class NavEnv(ParallelEnv):
                     "goal" if reached[i] else f"collision_{coll_kind.get(i, 'obstacle')}" if collided[i] else "nan_state"
                 )
         obs = self._observations(acting)
-        rewards, terms_out, infos, terminations, truncations = {}, {}, {}, {}, {}
-        for a, i in zip(acting, acting_idx):
+        rewards, infos, terminations, truncations = {}, {}, {}, {}
+        for a, i in zip(acting, acting_idx, strict=True):
             rewards[a] = float(rew[i])
             terminations[a] = bool(terminated[i])
             truncations[a] = bool(truncated[i])

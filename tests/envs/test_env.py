@@ -63,7 +63,7 @@ def test_reset_same_seed_twice_in_one_env_is_identical():
                 traj.append(obs["robot_0"]["agents"].copy())
         out.append(traj)
     assert len(out[0]) == len(out[1])
-    for x, y in zip(*out):
+    for x, y in zip(*out, strict=True):
         np.testing.assert_array_equal(x, y)
     env.close()
 
