@@ -630,6 +630,14 @@ class NavEnv(ParallelEnv):
             return views[0]
         return np.concatenate(views, axis=1)
 
+    # A PyBullet world cannot be pickled: a pickled env (SuperSuit and process pools copy envs this
+    # way) is rebuilt from its config as a fresh env that needs reset(), with its own client.
+    def __getstate__(self) -> dict[str, Any]:
+        return {"config": self.config, "render_mode": self.render_mode, "render_view": self.render_view}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__init__(state["config"], render_mode=state["render_mode"], render_view=state["render_view"])
+
     def close(self) -> None:
         if getattr(self, "client", None) is not None:
             sim.disconnect(self.client)

@@ -6,6 +6,7 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 import gymnasium
+import numpy as np
 from pettingzoo import ParallelEnv
 
 from navzoo.agents.policy import Policy
@@ -84,6 +85,66 @@ class FrozenAgents(ParallelEnv):
         obs, rew, term, trunc, infos = self.env.step(full)
         obs, self._frozen_obs = self._split(obs)
         return obs, self._split(rew)[0], self._split(term)[0], self._split(trunc)[0], self._split(infos)[0]
+
+    def render(self):
+        return self.env.render()
+
+    def close(self) -> None:
+        self.env.close()
+
+
+class PadFinishedAgents(ParallelEnv):
+    """Keep agents that finished early as zero entries until the episode ends.
+
+    Vector wrappers (SuperSuit's ``pettingzoo_env_to_vec_env_v1``) need a fixed set of agents.
+    A robot that reaches its goal or collides reports its real termination on that step, then
+    appears with a zero observation, zero reward and ``False`` flags until every agent is done;
+    the last step reports the end for all. (SuperSuit's ``black_death_v3`` does the same but only
+    ends the episode when an agent is terminated *and* truncated, one step too late for envs
+    whose agents end by termination.) Observation spaces must be Boxes (``flat_obs=True``).
+    """
+
+    def __init__(self, env: ParallelEnv) -> None:
+        self.env = env
+        self.possible_agents = list(env.possible_agents)
+        self.metadata = env.metadata
+        self.agents: list[str] = []
+        for a in self.possible_agents:
+            if not isinstance(env.observation_space(a), gymnasium.spaces.Box):
+                raise TypeError(f"PadFinishedAgents needs Box observations (flat_obs=True); {a} has {env.observation_space(a)}")
+
+    @property
+    def unwrapped(self) -> NavEnv:
+        return self.env.unwrapped
+
+    @property
+    def render_mode(self) -> str | None:
+        return self.env.render_mode
+
+    def observation_space(self, agent: str):
+        return self.env.observation_space(agent)
+
+    def action_space(self, agent: str):
+        return self.env.action_space(agent)
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        obs, infos = self.env.reset(seed=seed, options=options)
+        self.agents = list(self.possible_agents)
+        return obs, {a: infos.get(a, {}) for a in self.agents}
+
+    def step(self, actions: dict[str, Any]):
+        live = {a: actions[a] for a in self.env.agents if a in actions}
+        obs, rew, term, trunc, infos = self.env.step(live)
+        over = not self.env.agents
+        agents = list(self.agents)
+        out_obs = {a: obs[a] if a in obs else np.zeros_like(self.observation_space(a).low) for a in agents}
+        out_rew = {a: float(rew.get(a, 0.0)) for a in agents}
+        out_term = {a: bool(term.get(a, False)) for a in agents}
+        out_trunc = {a: bool(trunc.get(a, False)) or (over and not term.get(a, False)) for a in agents}
+        out_info = {a: infos.get(a, {}) for a in agents}
+        if over:
+            self.agents = []
+        return out_obs, out_rew, out_term, out_trunc, out_info
 
     def render(self):
         return self.env.render()

@@ -96,3 +96,11 @@ def test_observations_inside_spaces_and_finite(env_id):
         steps += 1
     assert steps > 0
     env.close()
+
+
+def test_pad_finished_agents_passes_parallel_api():
+    from navzoo.envs.wrappers import PadFinishedAgents
+
+    env = PadFinishedAgents(navzoo.make("navzoo/Lobby-v0", n_robots=3, flat_obs=True, **SMALL))
+    parallel_api_test(env, num_cycles=80)
+    env.close()

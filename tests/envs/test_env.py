@@ -300,22 +300,39 @@ def test_nan_physics_state_ends_episode(monkeypatch):
     env.close()
 
 
-def test_sb3_ppo_smoke_through_supersuit():
-    import supersuit as ss
+def _ppo_params_after(total_steps: int, **vec_kw):
+    import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecCheckNan
 
-    env = navzoo.make("navzoo/CircleCrossing-v0", flat_obs=True, n_humans=3)
-    vec = ss.pettingzoo_env_to_vec_env_v1(env)
-    vec = ss.concat_vec_envs_v1(vec, 2, num_cpus=0, base_class="stable_baselines3")
-    vec = VecCheckNan(vec, raise_exception=True)
-    # SuperSuit's ConcatVecEnv has no seed(): seed torch/numpy here and the env copies by reset.
-    from stable_baselines3.common.utils import set_random_seed
+    from navzoo.envs.vector import sb3_vec_env
 
-    set_random_seed(0)
-    model = PPO("MlpPolicy", vec, n_steps=64, batch_size=64, n_epochs=1, device="cpu", verbose=0)
-    model.learn(total_timesteps=256)
-    assert model.num_timesteps >= 256
+    vec = VecCheckNan(sb3_vec_env("navzoo/CircleCrossing-v0", n_humans=3, **vec_kw), raise_exception=True)
+    model = PPO("MlpPolicy", vec, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu", verbose=0)
+    model.learn(total_timesteps=total_steps)
+    assert model.num_timesteps >= total_steps
+    vec.close()
+    return torch.nn.utils.parameters_to_vector(model.policy.parameters()).detach().clone()
+
+
+def test_sb3_ppo_smoke_through_supersuit_is_deterministic():
+    a = _ppo_params_after(256, n_envs=2, seed=0)
+    b = _ppo_params_after(256, n_envs=2, seed=0)
+    assert (a == b).all()
+
+
+def test_sb3_vec_env_with_several_robots_pads_finished_ones():
+    from navzoo.envs.vector import sb3_vec_env
+
+    vec = sb3_vec_env("navzoo/Lobby-v0", n_envs=2, seed=3, n_robots=2, n_humans=2, max_episode_steps_override=30)
+    assert vec.num_envs == 4
+    obs = vec.reset()
+    assert obs.shape[0] == 4
+    import numpy as np
+
+    for _ in range(40):  # crosses episode ends (robots finishing at different times)
+        obs, rew, done, info = vec.step(np.zeros((4, 2), np.float32))
+        assert np.isfinite(obs).all() and np.isfinite(rew).all()
     vec.close()
 
 
@@ -325,3 +342,22 @@ def test_nothing_printed_by_pybullet_on_make(capfd):
     env.close()
     out, _ = capfd.readouterr()
     assert "b3Warning" not in out and "urdfdom" not in out
+
+
+def test_pickled_env_is_an_independent_fresh_copy():
+    import pickle
+
+    env = navzoo.make("navzoo/Corridor-v0", n_humans=2)
+    env.reset(seed=0)
+    copy = pickle.loads(pickle.dumps(env))
+    del copy  # closing the copy must not close the original's PyBullet client
+    import gc
+
+    gc.collect()
+    obs, *_ = env.step({"robot_0": np.zeros(2, np.float32)})
+    assert "robot_0" in obs
+    copy = pickle.loads(pickle.dumps(env))
+    with pytest.raises(RuntimeError, match="before reset"):
+        copy.step({"robot_0": np.zeros(2, np.float32)})
+    env.close()
+    copy.close()
