@@ -97,11 +97,12 @@ class PadFinishedAgents(ParallelEnv):
     """Keep agents that finished early as zero entries until the episode ends.
 
     Vector wrappers (SuperSuit's ``pettingzoo_env_to_vec_env_v1``) need a fixed set of agents.
-    A robot that reaches its goal or collides reports its real termination on that step, then
-    appears with a zero observation, zero reward and ``False`` flags until every agent is done;
-    the last step reports the end for all. (SuperSuit's ``black_death_v3`` does the same but only
-    ends the episode when an agent is terminated *and* truncated, one step too late for envs
-    whose agents end by termination.) Observation spaces must be Boxes (``flat_obs=True``).
+    A robot that reaches its goal or collides gets its last reward on that step (its event is in
+    ``info["event"]``), then appears with a zero observation, zero reward and ``False`` flags until
+    the episode ends; the last step reports every agent's real outcome (terminated, or truncated
+    if it never terminated). SuperSuit's ``black_death_v3`` does the same but only ends the
+    episode when an agent is terminated *and* truncated, one step too late for envs whose agents
+    end by termination. Observation spaces must be Boxes (``flat_obs=True``).
     """
 
     def __init__(self, env: ParallelEnv) -> None:
@@ -130,17 +131,20 @@ class PadFinishedAgents(ParallelEnv):
     def reset(self, seed: int | None = None, options: dict | None = None):
         obs, infos = self.env.reset(seed=seed, options=options)
         self.agents = list(self.possible_agents)
+        self._terminated: dict[str, bool] = {}
         return obs, {a: infos.get(a, {}) for a in self.agents}
 
     def step(self, actions: dict[str, Any]):
         live = {a: actions[a] for a in self.env.agents if a in actions}
         obs, rew, term, trunc, infos = self.env.step(live)
+        for a, t in term.items():
+            self._terminated[a] = self._terminated.get(a, False) or bool(t)
         over = not self.env.agents
         agents = list(self.agents)
         out_obs = {a: obs[a] if a in obs else np.zeros_like(self.observation_space(a).low) for a in agents}
         out_rew = {a: float(rew.get(a, 0.0)) for a in agents}
-        out_term = {a: bool(term.get(a, False)) for a in agents}
-        out_trunc = {a: bool(trunc.get(a, False)) or (over and not term.get(a, False)) for a in agents}
+        out_term = {a: over and self._terminated.get(a, False) for a in agents}
+        out_trunc = {a: over and not self._terminated.get(a, False) for a in agents}
         out_info = {a: infos.get(a, {}) for a in agents}
         if over:
             self.agents = []

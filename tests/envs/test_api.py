@@ -102,5 +102,17 @@ def test_pad_finished_agents_passes_parallel_api():
     from navzoo.envs.wrappers import PadFinishedAgents
 
     env = PadFinishedAgents(navzoo.make("navzoo/Lobby-v0", n_robots=3, flat_obs=True, **SMALL))
-    parallel_api_test(env, num_cycles=80)
+    for _ in range(5):  # unseeded resets: robots end at different steps in most episodes
+        parallel_api_test(env, num_cycles=80)
+    # A robot that ends early stays until the end, then reports its real termination.
+    obs, _ = env.reset(seed=0, options={
+        "robot_starts": [[10.0, 2.0], [4.0, 8.0], [16.0, 8.0]], "robot_goals": [[10.0, 2.2], [4.0, 12.0], [16.0, 4.0]]})
+    assert env.agents == ["robot_0", "robot_1", "robot_2"]
+    obs, rew, term, trunc, info = env.step({a: np.zeros(2, np.float32) for a in env.agents})
+    assert info["robot_0"]["event"] == "goal" and rew["robot_0"] >= 20 and not term["robot_0"]
+    assert env.agents == ["robot_0", "robot_1", "robot_2"]
+    while env.agents:
+        obs, rew, term, trunc, info = env.step({a: np.zeros(2, np.float32) for a in env.agents})
+        assert rew["robot_0"] == 0.0 and not obs["robot_0"].any()
+    assert term["robot_0"] and trunc["robot_1"] and trunc["robot_2"]
     env.close()
