@@ -264,6 +264,7 @@ class NavEnv(ParallelEnv):
         self.hist_yaw = np.repeat(self.yaw[None], T, axis=0)
         self.hist_valid = np.zeros(T, dtype=bool)
         self.hist_valid[-1] = True
+        self.trail: list[np.ndarray] = [self.pos.copy()]  # every step's positions, for rendering
 
         self.agents = list(self.possible_agents)
         self._needs_reset = False
@@ -391,6 +392,7 @@ class NavEnv(ParallelEnv):
         self.hist_yaw = np.roll(self.hist_yaw, -1, axis=0)
         self.hist_valid = np.roll(self.hist_valid, -1)
         self.hist_pos[-1], self.hist_vel[-1], self.hist_yaw[-1], self.hist_valid[-1] = self.pos, self.vel, self.yaw, True
+        self.trail.append(self.pos.copy())
 
         terminated = np.zeros(self.n_total, dtype=bool)
         terminated[:R] = robot_alive & (reached[:R] | collided[:R])

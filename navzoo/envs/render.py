@@ -45,14 +45,18 @@ def draw_topdown(env: NavEnv, max_px: int = 640) -> np.ndarray:
     for i in range(env.n_total):
         is_robot = i < R
         if is_robot and env.paths[i] is not None:
-            pts = px(np.vstack([env.hist_pos[0, i][None], env.paths[i]]))
+            pts = px(np.vstack([env.trail[0][i][None], env.paths[i]]))
             cv2.polylines(img, [pts], False, PATH_BGR, 1, cv2.LINE_AA, shift=2)
+    # Trails: each robot's whole episode, the last 3 s of each person.
+    history = np.asarray(env.trail)
+    recent = max(1, int(round(3.0 / env.config.dt)))
     for i in range(env.n_total):
-        valid = env.hist_valid
-        trail = px(env.hist_pos[valid, i])
+        pts = history[:, i] if i < R else history[-recent:, i]
+        trail = px(pts)
         color = ROBOT_BGR if i < R else HUMAN_BGR
         if len(trail) > 1:
-            cv2.polylines(img, [trail], False, tuple(int(0.5 * c + 127) for c in color), 1, cv2.LINE_AA, shift=2)
+            cv2.polylines(img, [trail], False, tuple(int(0.5 * c + 127) for c in color), 2 if i < R else 1,
+                          cv2.LINE_AA, shift=2)
     for i in range(R):
         g = px(env.goal[i])
         r = int(max(3, env.goal_tolerance * scale) * ss)
