@@ -31,6 +31,9 @@ class NavConfig:
         crowd_model: rule-based trajectory generator of frozen pedestrians (``"sfm"`` or ``"orca"``).
         humans_see_robots: whether pedestrians react to robots (off = CrowdNav's invisible robot).
         human_radius: pedestrians' disc radius for collisions and observations (m).
+        human_body_contacts: also count PyBullet contacts between a robot and a humanoid's limbs
+            as collisions (a walking humanoid's hands and feet reach up to ~0.1 m beyond a 0.3 m
+            disc). Off = the disc model alone, as CrowdNav (the CrowdNav presets turn it off).
         human_speed: (min, max) preferred walking speed, sampled per person (m/s).
         human_max_speed: speed that a human action of norm 1 maps to (m/s).
         dt: control period (s).
@@ -62,6 +65,7 @@ class NavConfig:
     crowd_model: CrowdModel = "sfm"
     humans_see_robots: bool = True
     human_radius: float = 0.3
+    human_body_contacts: bool = True
     human_speed: tuple[float, float] = (1.0, 1.4)
     human_max_speed: float = 2.0
     dt: float = 0.1
@@ -99,6 +103,8 @@ class NavConfig:
             raise bad("crowd_model", "'sfm' or 'orca'")
         if not isinstance(self.humans_see_robots, bool):
             raise bad("humans_see_robots", "a bool")
+        if not isinstance(self.human_body_contacts, bool):
+            raise bad("human_body_contacts", "a bool")
         for name in ("human_radius", "human_max_speed", "dt", "min_goal_distance", "sensor_range", "map_size",
                      "path_spacing", "waypoint_tolerance", "grid_resolution"):
             if not _is_pos(getattr(self, name)):

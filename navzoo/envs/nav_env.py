@@ -510,6 +510,8 @@ class NavEnv(ParallelEnv):
                 continue
             for body in self.robots.contacts(int(i)):
                 kind = self._body_kind.get(body)
+                if kind == "human" and not self.config.human_body_contacts:
+                    continue
                 if kind is not None:
                     out[int(i)] = kind
                     break
