@@ -45,7 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
     speed.add_argument("--steps", type=int, default=200)
     speed.add_argument("--repeats", type=int, default=3)
     speed.add_argument("--scene", default="station")
-    speed.add_argument("--crowd", default="sfm", choices=["sfm", "orca"])
+    speed.add_argument("--crowd", default="sfm", choices=["sfm", "orca", "orca_rvo2"])
     speed.add_argument("--json", action="store_true")
     return parser
 

@@ -24,24 +24,28 @@ class CrowdPolicy:
     """Social-force or ORCA pedestrians following their A* waypoints.
 
     Args:
-        model: ``"sfm"`` or ``"orca"``.
+        model: ``"sfm"``, ``"orca"`` (navzoo's ORCA: keep-right bias and one-step safety, see
+            docs/crowd_models.md) or ``"orca_rvo2"`` (the same solver with RVO2's exact
+            semantics, as CrowdNav's pedestrians).
         see_robots: whether people react to robots (False = CrowdNav's invisible robot).
         sfm_params / orca_params: model parameters.
     """
 
     def __init__(
         self,
-        model: Literal["sfm", "orca"] = "sfm",
+        model: Literal["sfm", "orca", "orca_rvo2"] = "sfm",
         see_robots: bool = True,
         sfm_params: SocialForceParams | None = None,
         orca_params: OrcaParams | None = None,
     ) -> None:
-        if model not in ("sfm", "orca"):
-            raise ValueError(f"crowd model must be 'sfm' or 'orca', got {model!r}")
+        if model not in ("sfm", "orca", "orca_rvo2"):
+            raise ValueError(f"crowd model must be 'sfm', 'orca' or 'orca_rvo2', got {model!r}")
         self.model = model
         self.see_robots = see_robots
         self.sfm_params = sfm_params or SocialForceParams()
-        self.orca_params = orca_params or OrcaParams()
+        if orca_params is None:
+            orca_params = OrcaParams(right_bias=0.0, one_step_safety=False) if model == "orca_rvo2" else OrcaParams()
+        self.orca_params = orca_params
 
     def reset(self, env: NavEnv) -> None:  # stateless: everything it needs is in the env
         return None

@@ -13,7 +13,7 @@ from typing import Any, Literal
 
 from navzoo.agents.robot import RobotSpec
 
-CrowdModel = Literal["sfm", "orca"]
+CrowdModel = Literal["sfm", "orca", "orca_rvo2"]
 HumanModel = Literal["kinematic"]
 
 
@@ -28,13 +28,18 @@ class NavConfig:
         robot: robot model and limits.
         human_model: pedestrian body controller; ``"kinematic"`` (root follows the planar command,
             joints play a walk cycle). The AMP joint controller plugs in here.
-        crowd_model: rule-based trajectory generator of frozen pedestrians (``"sfm"`` or ``"orca"``).
+        crowd_model: rule-based trajectory generator of frozen pedestrians: ``"sfm"`` (social
+            force), ``"orca"`` (navzoo's ORCA) or ``"orca_rvo2"`` (ORCA with RVO2's exact
+            semantics, as CrowdNav's pedestrians).
         humans_see_robots: whether pedestrians react to robots (off = CrowdNav's invisible robot).
         human_radius: pedestrians' disc radius for collisions and observations (m).
         human_body_contacts: also count PyBullet contacts between a robot and a humanoid's limbs
             as collisions (a walking humanoid's hands and feet reach up to ~0.1 m beyond a 0.3 m
             disc). Off = the disc model alone, as CrowdNav (the CrowdNav presets turn it off).
         human_speed: (min, max) preferred walking speed, sampled per person (m/s).
+        human_at_goal: what a pedestrian does on reaching its goal: ``"new_goal"`` (walk on to a
+            newly sampled goal, a continuous crowd) or ``"stop"`` (stay there, as in CrowdNav's
+            test episodes).
         human_max_speed: speed that a human action of norm 1 maps to (m/s).
         dt: control period (s).
         physics_substeps: PyBullet steps per control step.
@@ -67,6 +72,7 @@ class NavConfig:
     human_radius: float = 0.3
     human_body_contacts: bool = True
     human_speed: tuple[float, float] = (1.0, 1.4)
+    human_at_goal: Literal["new_goal", "stop"] = "new_goal"
     human_max_speed: float = 2.0
     dt: float = 0.1
     physics_substeps: int = 2
@@ -99,10 +105,12 @@ class NavConfig:
             raise bad("robot", "a RobotSpec")
         if self.human_model not in ("kinematic",):
             raise bad("human_model", "'kinematic' (the AMP controller is not available in this version)")
-        if self.crowd_model not in ("sfm", "orca"):
-            raise bad("crowd_model", "'sfm' or 'orca'")
+        if self.crowd_model not in ("sfm", "orca", "orca_rvo2"):
+            raise bad("crowd_model", "'sfm', 'orca' or 'orca_rvo2'")
         if not isinstance(self.humans_see_robots, bool):
             raise bad("humans_see_robots", "a bool")
+        if self.human_at_goal not in ("new_goal", "stop"):
+            raise bad("human_at_goal", "'new_goal' or 'stop'")
         if not isinstance(self.human_body_contacts, bool):
             raise bad("human_body_contacts", "a bool")
         for name in ("human_radius", "human_max_speed", "dt", "min_goal_distance", "sensor_range", "map_size",

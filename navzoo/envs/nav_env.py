@@ -255,6 +255,7 @@ class NavEnv(ParallelEnv):
         self.action_clips = np.zeros(N, dtype=int)
         self.events: dict[str, str] = {}
         self.goals_reached = np.zeros(N, dtype=int)
+        self.arrived = np.zeros(N, dtype=bool)  # pedestrians done for good (human_at_goal="stop")
 
         self.robots.reset(self.pos[:R], self.yaw[:R])
         self.humans.reset(self.pos[R:], self.yaw[R:], self.rng_crowd.uniform(0, 1, H))
@@ -555,11 +556,15 @@ class NavEnv(ParallelEnv):
         """Give pedestrians that reached their goal a new goal and path; returns who reached."""
         R = self.n_robots
         reached = np.zeros(self.n_humans, dtype=bool)
+        stop = self.config.human_at_goal == "stop"
         for j in range(self.n_humans):
             i = R + j
-            if self.d_goal[i] < max(self.config.waypoint_tolerance, self.radius[i]):
+            if self.d_goal[i] < max(self.config.waypoint_tolerance, self.radius[i]) and not self.arrived[i]:
                 reached[j] = True
                 self.goals_reached[i] += 1
+                if stop:  # stays at its goal for the rest of the episode
+                    self.arrived[i] = True
+                    continue
                 goal = self._samplers["human"].sample_goal(self.rng_tasks, self.pos[i], "human",
                                                             min_goal_dist=self.config.min_goal_distance)
                 self.goal[i] = goal

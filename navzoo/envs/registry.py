@@ -18,11 +18,12 @@ from navzoo.envs.nav_env import NavEnv
 from navzoo.envs.wrappers import FrozenAgents
 
 # CrowdNav's protocol: holonomic robot, radius 0.3 m, v_pref 1 m/s, dt 0.25 s, 25 s, invisible robot,
-# 5 ORCA people of radius 0.3 m and v_pref 1 m/s, collisions judged on discs only.
+# 5 ORCA (RVO2 semantics) people of radius 0.3 m and v_pref 1 m/s who stop at their goals, collisions
+# judged on discs only.
 _CROWDNAV = dict(
-    human_body_contacts=False,
+    human_body_contacts=False, human_at_goal="stop",
     robot=RobotSpec(kinematics="holonomic", max_accel=100.0, max_ang_accel=100.0, max_turn_rate=8.0),
-    crowd_model="orca", humans_see_robots=False, human_speed=(1.0, 1.0), dt=0.25, time_limit=25.0,
+    crowd_model="orca_rvo2", humans_see_robots=False, human_speed=(1.0, 1.0), dt=0.25, time_limit=25.0,
 )
 
 SCENARIOS: dict[str, dict[str, Any]] = {

@@ -361,3 +361,19 @@ def test_pickled_env_is_an_independent_fresh_copy():
         copy.step({"robot_0": np.zeros(2, np.float32)})
     env.close()
     copy.close()
+
+
+def test_humans_stop_at_goal_when_configured():
+    env = navzoo.make("navzoo/CircleCrossing-v0", raw=True, n_humans=1, time_limit=20.0)
+    assert env.config.human_at_goal == "stop"
+    env.reset(seed=0, options={"robot_starts": [[-6.0, -6.0]], "robot_goals": [[-6.0, 6.0]],
+                               "human_starts": [[0.0, 0.0]], "human_goals": [[1.0, 0.0]]})
+    goal_rewards = 0
+    for _ in range(30):
+        if not env.agents:
+            break
+        obs, rew, term, trunc, info = env.step({"robot_0": np.zeros(2), "human_0": np.array([0.25, 0.0])})
+        goal_rewards += info["human_0"]["reward/goal"] > 0
+    assert goal_rewards == 1  # reached once, counted once
+    np.testing.assert_allclose(env.goal[1], [1.0, 0.0])  # no new goal
+    env.close()
