@@ -1,0 +1,1 @@
+"""Adversarial Motion Prior (AMP) pedestrian controller: physics humanoids, features, training."""
