@@ -68,7 +68,7 @@ class NavEnv(ParallelEnv):
     | velocity | (3,) | v_x, v_y (m/s), omega (rad/s) |
     | agents | (K, T, 7) | K nearest others over T steps: x, y, u, v, cos theta, sin theta, radius |
     | agents_mask | (K, T) | 1 where the entry is a real, observed agent |
-    | map | (C, C) | local occupancy crop, 1 = occupied, robot at the centre, x forward = up |
+    | map | (C, C) | local occupancy crop, 1 = occupied, agent at the centre, heading along columns |
 
     ## Rewards
     Robots: the paper's r_nav + r_omega (see :mod:`navzoo.envs.rewards`), each term in
@@ -585,7 +585,7 @@ class NavEnv(ParallelEnv):
             self.hist_pos, self.hist_vel, self.hist_yaw, self.hist_valid, self.radius, self.alive, idx,
             cfg.k_neighbors, cfg.sensor_range,
         )
-        maps = np.stack([self.grid.crop(self.pos[i], self.yaw[i], cfg.map_size, cfg.map_cells) for i in idx])
+        maps = self.grid.crop_many(self.pos[idx], self.yaw[idx], cfg.map_size, cfg.map_cells)
         out = {}
         for n, a in enumerate(agents):
             o = {

@@ -241,18 +241,23 @@ class OccupancyGrid:
         row index; shown with ``imshow(origin="lower")`` the heading points right. Values are 1.0 for
         occupied or off-grid cells and 0.0 for free ones (nearest-cell sampling).
         """
+        return self.crop_many(np.asarray(center_xy, dtype=np.float64).reshape(1, 2), np.array([yaw]), size_m, out_cells)[0]
+
+    def crop_many(self, centers_xy: ArrayLike, yaws: ArrayLike, size_m: float, out_cells: int) -> np.ndarray:
+        """:meth:`crop` for N agents at once: ``(N, out_cells, out_cells)`` float32."""
         offsets = _crop_offsets(float(size_m), int(out_cells))  # (n*n, 2) local x, y
-        c, s = np.cos(yaw), np.sin(yaw)
-        cx, cy = np.asarray(center_xy, dtype=np.float64).reshape(2)
-        wx = cx + c * offsets[:, 0] - s * offsets[:, 1]
-        wy = cy + s * offsets[:, 0] + c * offsets[:, 1]
+        centers = np.asarray(centers_xy, dtype=np.float64).reshape(-1, 2)
+        yaws = np.asarray(yaws, dtype=np.float64).reshape(-1)
+        c, s = np.cos(yaws)[:, None], np.sin(yaws)[:, None]
+        wx = centers[:, :1] + c * offsets[None, :, 0] - s * offsets[None, :, 1]
+        wy = centers[:, 1:] + s * offsets[None, :, 0] + c * offsets[None, :, 1]
         col = np.floor((wx - self.origin[0]) / self.resolution).astype(np.int64)
         row = np.floor((wy - self.origin[1]) / self.resolution).astype(np.int64)
         h, w = self.occ.shape
         inside = (row >= 0) & (row < h) & (col >= 0) & (col < w)
-        vals = np.ones(offsets.shape[0], dtype=np.float32)
+        vals = np.ones(row.shape, dtype=np.float32)
         vals[inside] = self.occ[row[inside], col[inside]]
-        return vals.reshape(out_cells, out_cells)
+        return vals.reshape(-1, out_cells, out_cells)
 
 
 @lru_cache(maxsize=32)
