@@ -40,6 +40,14 @@ def build_parser() -> argparse.ArgumentParser:
     scenes = sub.add_parser("scenes", help="list the scene library with sizes and free area")
     scenes.add_argument("--json", action="store_true")
 
+    motions = sub.add_parser("motions", help="the reference motion library of the pedestrian body controller")
+    msub = motions.add_subparsers(dest="motions_command", metavar="ACTION")
+    convert = msub.add_parser("convert", help="convert the mocap in ../shared/data/mocap into the packaged library")
+    from navzoo.agents.motion_convert import add_arguments as add_convert_arguments
+
+    add_convert_arguments(convert)
+    msub.add_parser("list", help="list the clips of the packaged library").add_argument("--json", action="store_true")
+
     speed = sub.add_parser("speed", help="env throughput with kinematic crowds and its overhead over PyBullet")
     speed.add_argument("--humans", type=_int_list, default=[5, 20, 64], help="crowd sizes (default 5,20,64)")
     speed.add_argument("--steps", type=int, default=200)
@@ -63,7 +71,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _scenes(args)
         if args.command == "speed":
             return _speed(args)
-    except (ValueError, TypeError, FileNotFoundError) as exc:
+        if args.command == "motions":
+            return _motions(args, parser)
+    except (ValueError, TypeError, FileNotFoundError, OSError) as exc:
         print(f"navzoo {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
@@ -105,6 +115,29 @@ def _scenes(args: argparse.Namespace) -> int:
         proto = i["protocol"] if isinstance(i["protocol"], str) else i["protocol"].get("type", "")
         print(f"{i['name']:18s} {w:5.1f} x {h:4.1f} {i['free_area_m2']:9.1f} {i['n_obstacles']:9d} {i['default_humans']:6d}  {proto}")
     return 0
+
+
+def _motions(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    if args.motions_command == "convert":
+        from navzoo.agents.motion_convert import format_summary, run
+
+        summary = run(args)
+        print(json.dumps(summary) if args.json else format_summary(summary))
+        return 0
+    if args.motions_command == "list":
+        from navzoo.agents.motion_lib import MotionLibrary
+
+        lib = MotionLibrary.load()
+        rows = [{"clip": n, "duration_s": lib.duration(i), "speed_mps": lib.speed(i), "tags": list(lib.tags(i))}
+                for i, n in enumerate(lib.clip_names())]
+        if args.json:
+            print(json.dumps({"clips": rows}))
+        else:
+            for r in rows:
+                print(f"{r['clip']:28s} {r['duration_s']:6.2f} s {r['speed_mps']:5.2f} m/s  {','.join(r['tags'])}")
+        return 0
+    parser.parse_args(["motions", "--help"])
+    return 2
 
 
 def _speed(args: argparse.Namespace) -> int:

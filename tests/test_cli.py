@@ -65,3 +65,21 @@ def test_bad_input_gives_a_clear_error(args, msg, tmp_path):
     r = _navzoo(*args, "--out", str(tmp_path)) if args[0] == "demo" else _navzoo(*args)
     assert r.returncode != 0
     assert msg in r.stderr
+
+
+def test_motions_convert_reproduces_the_shipped_library(tmp_path: Path):
+    src = Path(__file__).resolve().parents[2] / "shared" / "data" / "mocap"
+    if not src.is_dir():
+        pytest.skip("../shared/data/mocap is not available")
+    r = _navzoo("motions", "convert", "--src", str(src), "--out", str(tmp_path), "--json")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads(r.stdout)
+    assert summary["clips"] == 170
+    shipped = Path(__file__).resolve().parents[1] / "navzoo" / "assets" / "motions"
+    for name in ("library.npz", "library.json"):
+        assert (tmp_path / name).read_bytes() == (shipped / name).read_bytes(), name
+
+
+def test_motions_convert_rejects_a_missing_source(tmp_path: Path):
+    r = _navzoo("motions", "convert", "--src", str(tmp_path / "nope"), "--out", str(tmp_path / "out"))
+    assert r.returncode == 2 and "not found" in r.stderr
