@@ -1,0 +1,414 @@
+"""Humanoid self-observation, AMP discriminator features and a numpy forward kinematics (no PyBullet).
+
+Everything here is vectorised over a leading batch axis and works on the state dictionary of
+:meth:`navzoo.agents.amp.sim.PhysicsHumanoids.read_state` or on a
+:class:`~navzoo.agents.reference.ReferenceState` (through :func:`reference_state_dict`, which adds
+the body positions by forward kinematics of the URDF), so the discriminator's "real" samples come
+from clips without simulating them.
+
+Frames (see ``docs/amp_sim.md``):
+
+* world: z up; quaternions are (x, y, z, w).
+* base: PyBullet's base frame of ``humanoid/humanoid.urdf``; its axes are the body's forward (+x),
+  up (+y) and right (+z) axes (the URDF is y-up; standing upright facing +x is the base orientation
+  ``R_x(+90 deg)``).
+* heading frame: the world frame rotated about z by the body's heading, the yaw of its forward axis
+  (:func:`heading`); its x axis points where the body faces, horizontally.
+
+Feature layout of :func:`amp_features` / :func:`self_observation` (105 numbers, IsaacGymEnvs order):
+
+====================  =====  ===========================================================================
+slice                 size   content
+====================  =====  ===========================================================================
+``[0:1]``             1      root height (m, world z)
+``[1:7]``             6      root orientation without heading: forward and up axes in the heading frame
+``[7:10]``            3      root linear velocity in the heading frame (m/s)
+``[10:13]``           3      root angular velocity in the heading frame (rad/s)
+``[13:61]``           48     8 spherical joints x 6-D (local x and z axes of the joint's rotation)
+``[61:65]``           4      revolute joint angles (rad)
+``[65:89]``           24     8 spherical joint angular velocities (child frame, rad/s)
+``[89:93]``           4      revolute joint velocities (rad/s)
+``[93:105]``          12     right hand, left hand, right foot, left foot positions relative to the root
+                             in the heading frame (m); link centres of mass
+====================  =====  ===========================================================================
+"""
+
+from __future__ import annotations
+
+import functools
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from navzoo.agents.motion import REVOLUTE_JOINTS, SPHERICAL_JOINTS
+from navzoo.agents.reference import ReferenceState
+
+# ----------------------------------------------------------------------------------------------
+# Model constants (humanoid/humanoid.urdf with URDF_MAINTAIN_LINK_ORDER: link index = joint index)
+# ----------------------------------------------------------------------------------------------
+
+HUMANOID_SCALE = 0.25
+N_LINKS = 15
+SPH: tuple[int, ...] = (
+    SPHERICAL_JOINTS  # (1 chest, 2 neck, 3 r_hip, 5 r_ankle, 6 r_shoulder, 9 l_hip, 11 l_ankle, 12 l_shoulder)
+)
+REV: tuple[int, ...] = tuple(sorted(REVOLUTE_JOINTS))  # (4 r_knee, 7 r_elbow, 10 l_knee, 13 l_elbow)
+#: Key bodies read by the simulator, in this order; the features use the first four (hands, feet).
+KEY_BODY_NAMES: tuple[str, ...] = ("right_hand", "left_hand", "right_foot", "left_foot", "head")
+KEY_LINKS: tuple[int, ...] = (8, 14, 5, 11, 2)
+N_FEATURE_KEYS = 4
+FOOT_LINKS: tuple[int, ...] = (5, 11)
+
+FEATURE_DIM = 1 + 6 + 3 + 3 + 6 * len(SPH) + len(REV) + 3 * len(SPH) + len(REV) + 3 * N_FEATURE_KEYS  # 105
+
+#: name -> slice of the 105-D feature vector.
+FEATURE_SLICES: dict[str, slice] = {}
+_o = 0
+for _name, _n in (
+    ("root_height", 1),
+    ("root_rot", 6),
+    ("root_lin_vel", 3),
+    ("root_ang_vel", 3),
+    ("sph_rot", 6 * len(SPH)),
+    ("rev_angle", len(REV)),
+    ("sph_vel", 3 * len(SPH)),
+    ("rev_vel", len(REV)),
+    ("key_pos", 3 * N_FEATURE_KEYS),
+):
+    FEATURE_SLICES[_name] = slice(_o, _o + _n)
+    _o += _n
+assert _o == FEATURE_DIM
+
+_EX = np.array([1.0, 0.0, 0.0])
+_EY = np.array([0.0, 1.0, 0.0])
+_EZ = np.array([0.0, 0.0, 1.0])
+
+# ----------------------------------------------------------------------------------------------
+# Quaternion helpers, (x, y, z, w), broadcasting over leading axes
+# ----------------------------------------------------------------------------------------------
+
+
+def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a * b`` (apply ``b`` first, then ``a``)."""
+    ax, ay, az, aw = np.moveaxis(a, -1, 0)
+    bx, by, bz, bw = np.moveaxis(b, -1, 0)
+    return np.stack(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ],
+        axis=-1,
+    )
+
+
+def quat_conj(q: np.ndarray) -> np.ndarray:
+    return np.concatenate([-q[..., :3], q[..., 3:]], axis=-1)
+
+
+def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4)."""
+    u = q[..., :3]
+    w = q[..., 3:]
+    t = 2.0 * _cross(u, v)
+    return v + w * t + _cross(u, t)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """np.cross for (..., 3) arrays, without its per-call overhead."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """(..., 4) unit quaternions -> (..., 3, 3) rotation matrices."""
+    x, y, z, w = np.moveaxis(q, -1, 0)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
+        ],
+        axis=-2,
+    )
+
+
+def quat_from_rotvec(v: np.ndarray) -> np.ndarray:
+    """Exponential map: rotation vectors (axis * angle, ..., 3) -> unit quaternions (..., 4)."""
+    v = np.asarray(v, dtype=np.float64)
+    angle = np.linalg.norm(v, axis=-1, keepdims=True)
+    half = 0.5 * angle
+    small = angle < 1e-8
+    # sin(a/2)/a, with its Taylor expansion near 0.
+    k = np.where(small, 0.5 - angle**2 / 48.0, np.sin(half) / np.where(small, 1.0, angle))
+    return np.concatenate([v * k, np.cos(half)], axis=-1)
+
+
+def quat_to_rotvec(q: np.ndarray) -> np.ndarray:
+    """Logarithm map of unit quaternions (..., 4) -> rotation vectors (..., 3), angle in [0, pi]."""
+    q = np.asarray(q, dtype=np.float64)
+    q = np.where(q[..., 3:] < 0, -q, q)  # shortest arc
+    s = np.linalg.norm(q[..., :3], axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(s, q[..., 3:])
+    small = s < 1e-8
+    k = np.where(small, 2.0 / np.maximum(q[..., 3:], 1e-12), angle / np.where(small, 1.0, s))
+    return q[..., :3] * k
+
+
+def heading(quat: np.ndarray) -> np.ndarray:
+    """Heading (rad) of base orientations (..., 4): the yaw of the body's forward axis (base +x)."""
+    f = quat_rotate(np.asarray(quat, dtype=np.float64), _EX)
+    return np.arctan2(f[..., 1], f[..., 0])
+
+
+def yaw_quat(yaw: np.ndarray) -> np.ndarray:
+    """Quaternions of rotations by ``yaw`` about world z."""
+    yaw = np.asarray(yaw, dtype=np.float64)
+    z = np.zeros_like(yaw)
+    return np.stack([z, z, np.sin(0.5 * yaw), np.cos(0.5 * yaw)], axis=-1)
+
+
+def to_heading_frame(quat: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """World vectors ``v`` (N, ..., 3) expressed in the heading frame of base orientations ``quat`` (N, 4)."""
+    h = heading(quat)
+    c, s = np.cos(h), np.sin(h)
+    extra = (1,) * (v.ndim - 2)
+    c = c.reshape(c.shape + extra)
+    s = s.reshape(s.shape + extra)
+    x, y = v[..., 0], v[..., 1]
+    return np.stack([c * x + s * y, -s * x + c * y, v[..., 2]], axis=-1)
+
+
+# ----------------------------------------------------------------------------------------------
+# Forward kinematics of humanoid/humanoid.urdf (parsed once, scaled by 0.25)
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class HumanoidModel:
+    """Kinematic tree of the URDF in PyBullet's link order (``URDF_MAINTAIN_LINK_ORDER``).
+
+    Attributes:
+        names: (15,) link (= joint) names.
+        parent: (15,) parent link index, -1 for the base.
+        joint_type: (15,) ``"fixed" | "spherical" | "revolute"``.
+        origin_pos: (15, 3) joint origin in the parent's link frame (m, scaled).
+        origin_rot: (15, 3, 3) joint origin rotation in the parent's link frame.
+        axis: (15, 3) revolute axis in the child frame (zero for other joints).
+        com: (15, 3) link centre of mass in the link frame (m, scaled).
+        base_com: (3,) base centre of mass in the base link frame (PyBullet's base position).
+        mass: (15,) link masses (kg); ``base_mass`` the base's.
+    """
+
+    names: tuple[str, ...]
+    parent: np.ndarray
+    joint_type: tuple[str, ...]
+    origin_pos: np.ndarray
+    origin_rot: np.ndarray
+    axis: np.ndarray
+    com: np.ndarray
+    base_com: np.ndarray
+    mass: np.ndarray
+    base_mass: float
+
+
+def _rpy_matrix(rpy: np.ndarray) -> np.ndarray:
+    r, p_, y = rpy
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p_), np.sin(p_), np.cos(y), np.sin(y)
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def _floats(s: str | None, n: int = 3) -> np.ndarray:
+    return np.array([float(x) for x in s.split()]) if s else np.zeros(n)
+
+
+@functools.lru_cache(maxsize=4)
+def load_humanoid_model(path: str | None = None, scale: float = HUMANOID_SCALE) -> HumanoidModel:
+    """Parse ``pybullet_data/humanoid/humanoid.urdf`` (cached) into a :class:`HumanoidModel`."""
+    if path is None:
+        import pybullet_data  # data files only; no physics import
+
+        path = str(Path(pybullet_data.getDataPath()) / "humanoid" / "humanoid.urdf")
+    # pybullet_data's file ends in a NUL byte, which XML parsers reject.
+    root = ET.fromstring(Path(path).read_bytes().rstrip(b"\0 \t\r\n"))
+    links = {ln.get("name"): ln for ln in root.findall("link")}
+    joints = root.findall("joint")
+
+    def inertial(link: ET.Element) -> tuple[np.ndarray, float]:
+        ine = link.find("inertial")
+        if ine is None:
+            return np.zeros(3), 0.0
+        org = ine.find("origin")
+        m = ine.find("mass")
+        return _floats(org.get("xyz") if org is not None else None) * scale, float(
+            m.get("value")
+        ) if m is not None else 0.0
+
+    child_names = {j.find("child").get("link") for j in joints}
+    base_names = [n for n in links if n not in child_names]
+    if len(base_names) != 1:
+        raise ValueError(f"{path}: expected one root link, found {base_names}")
+    base_com, base_mass = inertial(links[base_names[0]])
+    index = {base_names[0]: -1}
+    names, parent, jtype, opos, orot, axis, com, mass = [], [], [], [], [], [], [], []
+    for i, j in enumerate(joints):
+        child = j.find("child").get("link")
+        index[child] = i
+        names.append(j.get("name"))
+        parent.append(index[j.find("parent").get("link")])
+        jtype.append(j.get("type"))
+        org = j.find("origin")
+        opos.append(_floats(org.get("xyz") if org is not None else None) * scale)
+        orot.append(_rpy_matrix(_floats(org.get("rpy") if org is not None else None)))
+        ax = j.find("axis")
+        a = _floats(ax.get("xyz")) if (ax is not None and j.get("type") == "revolute") else np.zeros(3)
+        axis.append(a / np.linalg.norm(a) if np.any(a) else a)
+        c, m = inertial(links[child])
+        com.append(c)
+        mass.append(m)
+    return HumanoidModel(
+        names=tuple(names),
+        parent=np.array(parent),
+        joint_type=tuple(jtype),
+        origin_pos=np.array(opos),
+        origin_rot=np.array(orot),
+        axis=np.array(axis),
+        com=np.array(com),
+        base_com=base_com,
+        mass=np.array(mass),
+        base_mass=base_mass,
+    )
+
+
+def forward_kinematics(
+    root_pos: np.ndarray,
+    root_quat: np.ndarray,
+    sph: np.ndarray,
+    rev: np.ndarray,
+    model: HumanoidModel | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """World link poses of B humanoids.
+
+    Args:
+        root_pos: (B, 3) PyBullet base positions; root_quat (B, 4) base orientations.
+        sph: (B, 8, 4) spherical joint quaternions (order ``SPH``); rev (B, 4) revolute angles (order ``REV``).
+
+    Returns:
+        ``(com_pos (B, 15, 3), link_rot (B, 15, 3, 3))``: each link's centre of mass (what PyBullet's
+        ``getLinkState`` returns first) and its link-frame rotation in the world.
+    """
+    m = model if model is not None else load_humanoid_model()
+    root_pos = np.asarray(root_pos, dtype=np.float64)
+    b = root_pos.shape[0]
+    base_rot = quat_to_matrix(np.asarray(root_quat, dtype=np.float64))
+    base_pos = root_pos - np.einsum("bij,j->bi", base_rot, m.base_com)
+    joint_rot = np.broadcast_to(np.eye(3), (b, N_LINKS, 3, 3)).copy()
+    joint_rot[:, list(SPH)] = quat_to_matrix(np.asarray(sph, dtype=np.float64))
+    rev = np.asarray(rev, dtype=np.float64)
+    for k, j in enumerate(REV):
+        joint_rot[:, j] = _axis_angle_matrix(m.axis[j], rev[:, k])
+    rot = np.empty((b, N_LINKS, 3, 3))
+    pos = np.empty((b, N_LINKS, 3))
+    for j in range(N_LINKS):
+        pj = m.parent[j]
+        prot, ppos = (base_rot, base_pos) if pj < 0 else (rot[:, pj], pos[:, pj])
+        pos[:, j] = ppos + np.einsum("bij,j->bi", prot, m.origin_pos[j])
+        rot[:, j] = prot @ m.origin_rot[j] @ joint_rot[:, j]
+    com = pos + np.einsum("bkij,kj->bki", rot, m.com)
+    return com, rot
+
+
+def _axis_angle_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """(B, 3, 3) rotations by ``angle`` (B,) about the unit ``axis`` (Rodrigues)."""
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    s = np.sin(angle)[:, None, None]
+    c = np.cos(angle)[:, None, None]
+    return np.eye(3) + s * k + (1 - c) * (k @ k)
+
+
+# ----------------------------------------------------------------------------------------------
+# Features
+# ----------------------------------------------------------------------------------------------
+
+
+def reference_state_dict(ref: ReferenceState, model: HumanoidModel | None = None) -> dict[str, np.ndarray]:
+    """A batched :class:`ReferenceState` as a ``read_state()``-like dict, with body positions by FK."""
+    root_pos = np.atleast_2d(np.asarray(ref.root_pos, dtype=np.float64))
+    b = root_pos.shape[0]
+    root_quat = np.asarray(ref.root_quat, dtype=np.float64).reshape(b, 4)
+    sph = np.asarray(ref.sph, dtype=np.float64).reshape(b, len(SPH), 4)
+    rev = np.asarray(ref.rev, dtype=np.float64).reshape(b, len(REV))
+    body_pos, _ = forward_kinematics(root_pos, root_quat, sph, rev, model)
+    return {
+        "root_pos": root_pos,
+        "root_quat": root_quat,
+        "root_lin_vel": np.asarray(ref.root_lin_vel, dtype=np.float64).reshape(b, 3),
+        "root_ang_vel": np.asarray(ref.root_ang_vel, dtype=np.float64).reshape(b, 3),
+        "sph": sph,
+        "sph_vel": np.asarray(ref.sph_vel, dtype=np.float64).reshape(b, len(SPH), 3),
+        "rev": rev,
+        "rev_vel": np.asarray(ref.rev_vel, dtype=np.float64).reshape(b, len(REV)),
+        "body_pos": body_pos,
+        "key_pos": body_pos[:, list(KEY_LINKS)],
+    }
+
+
+def amp_features(state: dict[str, np.ndarray]) -> np.ndarray:
+    """Per-frame AMP discriminator features (N, 105) of a ``read_state()`` dict (layout: module doc)."""
+    q = np.asarray(state["root_quat"], dtype=np.float64)
+    n = q.shape[0]
+    h_inv = yaw_quat(-heading(q))
+    q_local = quat_mul(h_inv, q)
+    root_rot = np.concatenate([quat_rotate(q_local, _EX), quat_rotate(q_local, _EY)], axis=-1)
+    lin = to_heading_frame(q, np.asarray(state["root_lin_vel"], dtype=np.float64))
+    ang = to_heading_frame(q, np.asarray(state["root_ang_vel"], dtype=np.float64))
+    sph = np.asarray(state["sph"], dtype=np.float64)
+    sph_rot = np.concatenate([quat_rotate(sph, _EX), quat_rotate(sph, _EZ)], axis=-1).reshape(n, -1)
+    key = (
+        np.asarray(state["key_pos"], dtype=np.float64)[:, :N_FEATURE_KEYS]
+        - np.asarray(state["root_pos"])[:, None]
+    )
+    key = to_heading_frame(q, key).reshape(n, -1)
+    return np.concatenate(
+        [
+            np.asarray(state["root_pos"], dtype=np.float64)[:, 2:3],
+            root_rot,
+            lin,
+            ang,
+            sph_rot,
+            np.asarray(state["rev"], dtype=np.float64).reshape(n, -1),
+            np.asarray(state["sph_vel"], dtype=np.float64).reshape(n, -1),
+            np.asarray(state["rev_vel"], dtype=np.float64).reshape(n, -1),
+            key,
+        ],
+        axis=-1,
+    )
+
+
+def self_observation(state: dict[str, np.ndarray]) -> np.ndarray:
+    """The policy's humanoid self-observation (N, 105): the same layout as :func:`amp_features`
+    (IsaacGymEnvs uses one function for both); kept separate so either can grow on its own."""
+    return amp_features(state)
+
+
+def reference_features(ref: ReferenceState, model: HumanoidModel | None = None) -> np.ndarray:
+    """AMP features (B, 105) of a batched reference state, body positions by forward kinematics."""
+    return amp_features(reference_state_dict(ref, model))
+
+
+def task_observation(root_pos: np.ndarray, root_quat: np.ndarray, waypoints: np.ndarray) -> np.ndarray:
+    """Waypoints (N, K, 2) relative to the root, in the heading frame, flattened to (N, 2K)."""
+    root_pos = np.asarray(root_pos, dtype=np.float64)
+    wp = np.asarray(waypoints, dtype=np.float64)
+    d = wp - root_pos[:, None, :2]
+    h = heading(root_quat)
+    c, s = np.cos(h)[:, None], np.sin(h)[:, None]
+    local = np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], axis=-1)
+    return local.reshape(local.shape[0], -1)
