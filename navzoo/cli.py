@@ -48,6 +48,12 @@ def build_parser() -> argparse.ArgumentParser:
     add_convert_arguments(convert)
     msub.add_parser("list", help="list the clips of the packaged library").add_argument("--json", action="store_true")
 
+    train = sub.add_parser("train", help="train a model of navzoo")
+    tsub = train.add_subparsers(dest="train_command", metavar="MODEL")
+    from navzoo.agents.amp.train import add_arguments as add_amp_arguments
+
+    add_amp_arguments(tsub.add_parser("amp", help="the AMP pedestrian controller (resumable; see docs/amp_training.md)"))
+
     speed = sub.add_parser("speed", help="env throughput with kinematic crowds and its overhead over PyBullet")
     speed.add_argument("--humans", type=_int_list, default=[5, 20, 64], help="crowd sizes (default 5,20,64)")
     speed.add_argument("--steps", type=int, default=200)
@@ -73,6 +79,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _speed(args)
         if args.command == "motions":
             return _motions(args, parser)
+        if args.command == "train":
+            return _train(args, parser)
     except (ValueError, TypeError, FileNotFoundError, OSError) as exc:
         print(f"navzoo {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -137,6 +145,20 @@ def _motions(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
                 print(f"{r['clip']:28s} {r['duration_s']:6.2f} s {r['speed_mps']:5.2f} m/s  {','.join(r['tags'])}")
         return 0
     parser.parse_args(["motions", "--help"])
+    return 2
+
+
+def _train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    if args.train_command == "amp":
+        import dataclasses
+
+        from navzoo.agents.amp.train import TrainArgs, run
+
+        targs = TrainArgs(**{f.name: getattr(args, f.name) for f in dataclasses.fields(TrainArgs)})
+        result = run(targs)
+        print(json.dumps(result, default=str) if args.json else result)
+        return 0
+    parser.parse_args(["train", "--help"])
     return 2
 
 

@@ -8,6 +8,7 @@ and PyBullet's URDF importer prints harmless warnings from C code straight to th
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import os
 import sys
 from collections.abc import Iterator
@@ -35,6 +36,11 @@ def quiet() -> Iterator[None]:
         os.close(saved[0])
         os.close(saved[1])
 
+
+# Import torch before pybullet: with a CUDA build of torch and a source-built pybullet (the wheel of
+# the accelerator machine), importing pybullet first makes `import torch` segfault (measured there).
+if importlib.util.find_spec("torch") is not None:
+    import torch  # noqa: F401
 
 # pybullet prints its build time to stdout when first imported; keep stdout clean for --json output.
 with quiet():

@@ -1,0 +1,343 @@
+"""Checkpoints and exported policies of the AMP learner: tensors + JSON, never pickled objects.
+
+Training checkpoint — a directory ``<ckpt_dir>/ckpt_<iteration:08d>/`` holding
+
+- ``state.pt``: ``torch.save`` of a nested ``dict`` whose leaves are tensors (and plain ints/floats/
+  strings inside optimiser ``state_dict``\\ s), read back with ``torch.load(weights_only=True)``;
+- ``meta.json``: format tag and version, the config, step counters, the numpy RNG state, JSON parts
+  of the env state, and the sha256 of ``state.pt``.
+
+A checkpoint is written into a hidden temporary directory, flushed to disk, and renamed into place
+with ``os.replace``; then ``latest.json`` is replaced the same way. A crash at any point leaves the
+previous checkpoint and pointer intact (at worst a stale ``.tmp-*`` directory, ignored and cleaned up
+later).
+
+Exported policy — a directory with ``policy.pt`` (flat ``dict[str, Tensor]``: actor weights and the
+observation normaliser) and ``config.json`` (dims, architecture, normaliser settings, sha256 of
+``policy.pt``). :func:`load_policy` rebuilds a numpy-in/numpy-out deterministic policy from it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import shutil
+import time
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from navzoo.agents.amp.networks import Actor
+from navzoo.agents.amp.normalizer import RunningMeanStd
+
+CHECKPOINT_FORMAT = "navzoo-amp-checkpoint"
+CHECKPOINT_VERSION = 1
+POLICY_FORMAT = "navzoo-amp-policy"
+POLICY_VERSION = 1
+STATE_FILE = "state.pt"
+META_FILE = "meta.json"
+LATEST_FILE = "latest.json"
+POLICY_WEIGHTS = "policy.pt"
+POLICY_CONFIG = "config.json"
+_CKPT_RE = re.compile(r"^ckpt_(\d{8})$")
+
+
+class CheckpointError(RuntimeError):
+    """A checkpoint or exported policy that cannot be trusted (missing, corrupted, foreign, mismatched)."""
+
+
+def sha256_file(path: str | os.PathLike[str]) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _fsync_dir(path: Path) -> None:
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _write_bytes_synced(path: Path, data: bytes) -> None:
+    with open(path, "wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
+
+
+def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
+    """Write a text file so that readers see either the old or the new content, never a mix."""
+    path = Path(path)
+    tmp = path.with_name(f".tmp-{path.name}-{os.getpid()}")
+    _write_bytes_synced(tmp, text.encode())
+    os.replace(tmp, path)
+    _fsync_dir(path.parent)
+
+
+def _torch_save_synced(obj: Any, path: Path) -> None:
+    with open(path, "wb") as f:
+        torch.save(obj, f)
+        f.flush()
+        os.fsync(f.fileno())
+
+
+def _load_tensors(path: Path) -> Any:
+    try:
+        return torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as e:  # torch raises UnpicklingError, RuntimeError, EOFError, ...
+        raise CheckpointError(
+            f"{path}: not a tensor-only torch file ({type(e).__name__}: {str(e).splitlines()[0][:200]})"
+        ) from e
+
+
+def _read_json(path: Path, what: str) -> dict[str, Any]:
+    if not path.is_file():
+        raise CheckpointError(f"{path}: missing {what}")
+    try:
+        data = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise CheckpointError(f"{path}: {what} is not valid JSON ({e})") from e
+    if not isinstance(data, dict):
+        raise CheckpointError(f"{path}: {what} must be a JSON object, got {type(data).__name__}")
+    return data
+
+
+# --------------------------------------------------------------------------- training checkpoints
+
+
+def checkpoint_name(iteration: int) -> str:
+    return f"ckpt_{iteration:08d}"
+
+
+def save_checkpoint(
+    ckpt_dir: str | os.PathLike[str],
+    iteration: int,
+    tensors: dict[str, Any],
+    meta: dict[str, Any],
+    keep: int = 3,
+) -> Path:
+    """Write ``ckpt_<iteration>`` atomically, point ``latest.json`` at it, keep the newest ``keep``.
+
+    Returns the checkpoint directory.
+    """
+    root = Path(ckpt_dir)
+    root.mkdir(parents=True, exist_ok=True)
+    name = checkpoint_name(iteration)
+    final = root / name
+    tmp = root / f".tmp-{name}-{os.getpid()}-{time.monotonic_ns()}"
+    tmp.mkdir()
+    try:
+        _torch_save_synced(tensors, tmp / STATE_FILE)
+        meta = {
+            "format": CHECKPOINT_FORMAT,
+            "version": CHECKPOINT_VERSION,
+            **meta,
+            "iteration": int(iteration),
+            "state_sha256": sha256_file(tmp / STATE_FILE),
+        }
+        _write_bytes_synced(tmp / META_FILE, json.dumps(meta, indent=1, sort_keys=True).encode())
+        _fsync_dir(tmp)
+        if final.exists():  # re-saving the same iteration (e.g. after an interrupt): swap it out
+            old = root / f".old-{name}-{os.getpid()}-{time.monotonic_ns()}"
+            os.replace(final, old)
+            os.replace(tmp, final)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, final)
+        _fsync_dir(root)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    atomic_write_text(root / LATEST_FILE, json.dumps({"checkpoint": name, "iteration": int(iteration)}))
+    _prune(root, keep, protect=name)
+    return final
+
+
+def _prune(root: Path, keep: int, protect: str) -> None:
+    ckpts = sorted(p for p in root.iterdir() if p.is_dir() and _CKPT_RE.match(p.name))
+    for p in ckpts[: max(0, len(ckpts) - max(keep, 1))]:
+        if p.name != protect:
+            shutil.rmtree(p, ignore_errors=True)
+    for p in root.iterdir():  # leftovers of crashed saves by dead processes
+        if (
+            p.is_dir()
+            and p.name.startswith((".tmp-ckpt_", ".old-ckpt_"))
+            and f"-{os.getpid()}-" not in p.name
+        ):
+            shutil.rmtree(p, ignore_errors=True)
+
+
+def latest_checkpoint(ckpt_dir: str | os.PathLike[str]) -> Path | None:
+    """The checkpoint ``latest.json`` points at; if the pointer is missing, the highest-numbered one.
+
+    Returns ``None`` when the directory holds no checkpoint.
+    """
+    root = Path(ckpt_dir)
+    if not root.is_dir():
+        return None
+    pointer = root / LATEST_FILE
+    if pointer.is_file():
+        data = _read_json(pointer, "checkpoint pointer")
+        name = data.get("checkpoint")
+        if not isinstance(name, str) or not _CKPT_RE.match(name):
+            raise CheckpointError(
+                f"{pointer}: 'checkpoint' must name a ckpt_XXXXXXXX directory, got {name!r}"
+            )
+        path = root / name
+        if path.is_dir():
+            return path
+        # Only possible after a crash in the middle of re-saving the same iteration: fall back to
+        # the newest complete checkpoint.
+        warnings.warn(
+            f"{pointer} points at {path}, which does not exist; using the newest checkpoint", stacklevel=2
+        )
+    ckpts = sorted(p for p in root.iterdir() if p.is_dir() and _CKPT_RE.match(p.name))
+    return ckpts[-1] if ckpts else None
+
+
+def load_checkpoint(path: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Read and verify one checkpoint (a ``ckpt_*`` directory, or its ``state.pt``/``meta.json``).
+
+    Returns ``(tensors, meta)``. Raises :class:`CheckpointError` naming the offending file when the
+    metadata is not ours, the hash does not match, or the state is not a tensor-only torch file.
+    """
+    path = Path(path)
+    if path.is_file():
+        path = path.parent
+    meta_path, state_path = path / META_FILE, path / STATE_FILE
+    meta = _read_json(meta_path, "checkpoint metadata")
+    if meta.get("format") != CHECKPOINT_FORMAT:
+        raise CheckpointError(
+            f"{meta_path}: not a navzoo AMP checkpoint (format {meta.get('format')!r}, "
+            f"expected {CHECKPOINT_FORMAT!r})"
+        )
+    if meta.get("version") != CHECKPOINT_VERSION:
+        raise CheckpointError(
+            f"{meta_path}: checkpoint version {meta.get('version')!r}, this code reads {CHECKPOINT_VERSION}"
+        )
+    if not state_path.is_file():
+        raise CheckpointError(f"{state_path}: missing checkpoint state")
+    digest = sha256_file(state_path)
+    if digest != meta.get("state_sha256"):
+        raise CheckpointError(
+            f"{state_path}: sha256 {digest[:16]}… does not match {meta_path.name} "
+            f"({str(meta.get('state_sha256'))[:16]}…): the file is corrupted or was replaced"
+        )
+    tensors = _load_tensors(state_path)
+    if not isinstance(tensors, dict):
+        raise CheckpointError(f"{state_path}: expected a dict of tensors, got {type(tensors).__name__}")
+    return tensors, meta
+
+
+# --------------------------------------------------------------------------- exported policies
+
+
+def export_policy_files(
+    path: str | os.PathLike[str],
+    actor: Actor,
+    obs_norm: RunningMeanStd,
+    config: dict[str, Any],
+) -> Path:
+    """Write ``policy.pt`` + ``config.json`` into directory ``path`` (see the module docstring)."""
+    out = Path(path)
+    out.mkdir(parents=True, exist_ok=True)
+    tensors = {f"actor.{k}": v.detach().cpu().clone() for k, v in actor.state_dict().items()}
+    tensors |= {f"obs_norm.{k}": v.detach().cpu().clone() for k, v in obs_norm.state_dict().items()}
+    tmp = out / f".tmp-{POLICY_WEIGHTS}-{os.getpid()}"
+    _torch_save_synced(tensors, tmp)
+    digest = sha256_file(tmp)
+    os.replace(tmp, out / POLICY_WEIGHTS)
+    cfg = {
+        "format": POLICY_FORMAT,
+        "version": POLICY_VERSION,
+        **config,
+        "obs_norm_eps": obs_norm.eps,
+        "obs_clip": obs_norm.clip,
+        "weights_file": POLICY_WEIGHTS,
+        "weights_sha256": digest,
+    }
+    atomic_write_text(out / POLICY_CONFIG, json.dumps(cfg, indent=1, sort_keys=True))
+    return out
+
+
+class AmpPolicy:
+    """Deterministic AMP policy: ``policy(obs) -> mean action`` clipped to [-1, 1].
+
+    Accepts ``(obs_dim,)`` or ``(N, obs_dim)`` numpy arrays, returns float32 ``(act_dim,)`` or
+    ``(N, act_dim)``. Runs under ``torch.no_grad`` on ``device``.
+    """
+
+    def __init__(self, actor: Actor, obs_norm: RunningMeanStd, config: dict[str, Any], device: str = "cpu"):
+        self.device = torch.device(device)
+        self.actor = actor.to(self.device).eval()
+        self.obs_norm = obs_norm.to(self.device)
+        self.config = config
+        self.obs_dim = int(config["obs_dim"])
+        self.act_dim = int(config["act_dim"])
+
+    @torch.no_grad()
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        x = np.asarray(obs, dtype=np.float32)
+        single = x.ndim == 1
+        if x.shape[-1] != self.obs_dim or x.ndim not in (1, 2):
+            raise ValueError(
+                f"obs must have shape (obs_dim,) or (N, obs_dim) with obs_dim={self.obs_dim}, got {x.shape}"
+            )
+        t = torch.from_numpy(x.reshape(-1, self.obs_dim)).to(self.device)
+        act = self.actor(self.obs_norm.normalize(t)).clamp(-1.0, 1.0).cpu().numpy()
+        return act[0] if single else act
+
+
+def load_policy(path: str | os.PathLike[str], device: str = "cpu") -> Callable[[np.ndarray], np.ndarray]:
+    """Load a policy written by ``AmpLearner.export_policy`` (a directory, or its ``config.json``).
+
+    Verifies the format tag and the sha256 of the weights before reading them with
+    ``weights_only=True``; raises :class:`CheckpointError` naming the file otherwise.
+    """
+    root = Path(path)
+    if root.is_file():
+        root = root.parent
+    cfg_path = root / POLICY_CONFIG
+    cfg = _read_json(cfg_path, "policy config")
+    if cfg.get("format") != POLICY_FORMAT or cfg.get("version") != POLICY_VERSION:
+        raise CheckpointError(
+            f"{cfg_path}: not a navzoo AMP policy v{POLICY_VERSION} "
+            f"(format {cfg.get('format')!r}, version {cfg.get('version')!r})"
+        )
+    w_path = root / str(cfg.get("weights_file", POLICY_WEIGHTS))
+    if not w_path.is_file():
+        raise CheckpointError(f"{w_path}: missing policy weights")
+    digest = sha256_file(w_path)
+    if digest != cfg.get("weights_sha256"):
+        raise CheckpointError(f"{w_path}: sha256 does not match {cfg_path.name}: corrupted or replaced")
+    tensors = _load_tensors(w_path)
+    try:
+        actor = Actor(
+            int(cfg["obs_dim"]),
+            int(cfg["act_dim"]),
+            [int(h) for h in cfg["actor_hidden"]],
+            str(cfg["activation"]),
+        )
+        actor.load_state_dict({k[len("actor.") :]: v for k, v in tensors.items() if k.startswith("actor.")})
+        norm = RunningMeanStd(int(cfg["obs_dim"]), eps=float(cfg["obs_norm_eps"]), clip=cfg["obs_clip"])
+        norm.load_state_dict(
+            {k[len("obs_norm.") :]: v for k, v in tensors.items() if k.startswith("obs_norm.")}
+        )
+    except (KeyError, RuntimeError, ValueError, TypeError) as e:
+        raise CheckpointError(f"{w_path}: does not match {cfg_path.name} ({e})") from e
+    return AmpPolicy(actor, norm, cfg, device)

@@ -1,0 +1,107 @@
+"""Train the AMP pedestrian controller: ``navzoo train amp`` / ``python -m navzoo.agents.amp.train``.
+
+Reads top to bottom: arguments, the reference clips, the vector env (worker processes of PyBullet
+humanoids following generated paths), the AMP + PPO learner, then the resumable training loop, which
+checkpoints into ``<out>/checkpoints`` and logs to ``<out>/tb`` and ``<out>/metrics.jsonl``. Running
+the same command again resumes from the latest checkpoint; Ctrl-C checkpoints before it exits.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from navzoo.agents.amp.path_env import AmpPathEnv, PathTaskConfig
+
+# Navigation locomotion for the style prior: walks, turns, veers, curves, starts and stops (no runs,
+# hops or clips with uneven feet), mirrored copies included.
+LOCOMOTION_TAGS = ("walk", "walk_slow", "walk_fast", "turn90_left", "turn90_right", "veer_left", "veer_right",
+                   "curve_left", "curve_right", "stop", "start", "restart", "sidestep_left", "sidestep_right")
+EXCLUDE_TAGS = ("run", "hop", "uneven_feet", "walk_to_run")
+
+
+def locomotion_reference():
+    """The packaged motion library restricted to navigation locomotion (module-level: picklable)."""
+    from navzoo.agents.motion_lib import MotionLibrary
+
+    return MotionLibrary.load().select(tags=LOCOMOTION_TAGS, exclude_tags=EXCLUDE_TAGS)
+
+
+@dataclass
+class TrainArgs:
+    out: str = "runs/amp"
+    total_steps: int = 20_000_000
+    workers: int = 1
+    envs_per_worker: int = 16
+    stage: int = 1
+    device: str = "cpu"
+    seed: int = 0
+    hidden: str = "512,256"
+    rollout_steps: int = 16
+    minibatch_size: int = 2048
+    ckpt_every: int = 10
+    ckpt_replay_rows: int = 10_000
+    time_limit_s: float | None = None
+    pd_mode: str = "motor"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    for f in dataclasses.fields(TrainArgs):
+        default = f.default
+        kind = {"int": int, "float": float, "str": str}.get(str(f.type).split(" ")[0], str)
+        if f.name == "time_limit_s":
+            kind = float
+        parser.add_argument(f"--{f.name.replace('_', '-')}", dest=f.name, type=kind, default=default)
+    parser.add_argument("--json", action="store_true", help="print the final summary as JSON")
+
+
+def run(args: TrainArgs) -> dict[str, Any]:
+    import torch
+
+    from navzoo.agents.amp.learner import AmpConfig, AmpLearner
+    from navzoo.agents.amp.vec import SubprocAmpVecEnv
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    hidden = tuple(int(h) for h in args.hidden.split(","))
+    task = PathTaskConfig(stage=args.stage, pd_mode=args.pd_mode)
+    if args.workers > 1:
+        env: Any = SubprocAmpVecEnv(locomotion_reference, args.workers, args.envs_per_worker, task, seed=args.seed)
+    else:
+        env = AmpPathEnv(args.envs_per_worker, locomotion_reference(), task, seed=args.seed)
+    config = AmpConfig(seed=args.seed, actor_hidden=hidden, critic_hidden=hidden, disc_hidden=hidden,
+                       rollout_steps=args.rollout_steps, minibatch_size=args.minibatch_size,
+                       ckpt_replay_rows=args.ckpt_replay_rows)
+    device = args.device if args.device != "cuda" or torch.cuda.is_available() else "cpu"
+    (out / "train_args.json").write_text(json.dumps({**dataclasses.asdict(args), "task": dataclasses.asdict(task),
+                                                     "learner": config.to_dict()}, indent=2, default=str))
+    learner = AmpLearner(env, config, device=device)
+    t0 = time.time()
+    try:
+        result = learner.train(args.total_steps, log_dir=out, ckpt_dir=out / "checkpoints", ckpt_every=args.ckpt_every,
+                               verbose=True, time_limit_s=args.time_limit_s)
+    finally:
+        env.close()
+    result = {**result, "wall_s": time.time() - t0, "out": str(out)}
+    learner.export_policy(out / "policy")
+    return result
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_arguments(parser)
+    ns = parser.parse_args(argv)
+    as_json = ns.json
+    args = TrainArgs(**{f.name: getattr(ns, f.name) for f in dataclasses.fields(TrainArgs)})
+    result = run(args)
+    print(json.dumps(result, default=str) if as_json else result)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,80 @@
+"""The AMP path-following task env, its worker-process vector, and the resumable training entry point."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from navzoo.agents.amp.features import FEATURE_DIM
+from navzoo.agents.amp.path_env import AmpPathEnv, PathTaskConfig
+from navzoo.agents.amp.train import locomotion_reference
+from navzoo.agents.amp.vec import SubprocAmpVecEnv
+
+
+@pytest.fixture(scope="module")
+def reference():
+    return locomotion_reference()
+
+
+def test_dims_rewards_and_auto_reset(reference):
+    env = AmpPathEnv(3, reference, PathTaskConfig(episode_seconds=1.0), seed=0)
+    obs = env.reset(seed=0)
+    assert obs.shape == (3, FEATURE_DIM + 20) and env.act_dim == 28 and env.amp_obs_dim == 2 * FEATURE_DIM
+    saw_end = False
+    for _ in range(40):  # 1 s episodes at 30 Hz: every env ends at least once
+        obs, rew, term, trunc, info = env.step(np.zeros((3, 28)))
+        assert np.isfinite(obs).all() and np.isfinite(rew).all()
+        assert info["amp_obs"].shape == (3, env.amp_obs_dim)
+        if (term | trunc).any():
+            saw_end = True
+            assert info["final_obs"].shape == obs.shape
+        assert (env.t <= env.episode_steps).all()
+    assert saw_end
+    ref = env.sample_reference_amp_obs(16, np.random.default_rng(0))
+    assert ref.shape == (16, env.amp_obs_dim) and np.isfinite(ref).all()
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros((3, 27)))
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.full((3, 28), np.nan))
+    env.close()
+
+
+def test_paths_start_at_the_body_and_move_at_the_commanded_speeds(reference):
+    cfg = PathTaskConfig(stage=1, speed_range=(1.0, 1.0))
+    env = AmpPathEnv(2, reference, cfg, seed=3)
+    env.reset(seed=3)
+    state = env.bodies.read_state()
+    np.testing.assert_allclose(env.paths[:, 0], state["root_pos"][:, :2], atol=1e-9)
+    speed = np.linalg.norm(np.diff(env.paths, axis=1), axis=2) / env.dt
+    np.testing.assert_allclose(speed, 1.0, atol=1e-6)
+    env.close()
+
+
+def test_worker_processes_match_the_protocol(reference):
+    vec = SubprocAmpVecEnv(locomotion_reference, workers=2, envs_per_worker=2, seed=0)
+    try:
+        obs = vec.reset(seed=0)
+        assert obs.shape == (4, vec.obs_dim)
+        obs, rew, term, trunc, info = vec.step(np.zeros((4, vec.act_dim)))
+        assert rew.shape == (4,) and info["amp_obs"].shape == (4, vec.amp_obs_dim)
+        assert vec.sample_reference_amp_obs(8, np.random.default_rng(0)).shape == (8, vec.amp_obs_dim)
+    finally:
+        vec.close()
+
+
+def test_train_entry_point_checkpoints_and_resumes(tmp_path):
+    cmd = [sys.executable, "-m", "navzoo.agents.amp.train", "--out", str(tmp_path), "--envs-per-worker", "4",
+           "--rollout-steps", "8", "--minibatch-size", "32", "--hidden", "64,64", "--ckpt-every", "1", "--json"]
+    first = subprocess.run(cmd + ["--total-steps", "64"], capture_output=True, text=True, timeout=300)
+    assert first.returncode == 0, first.stderr[-2000:]
+    r1 = json.loads(first.stdout.strip().splitlines()[-1])
+    assert r1["global_step"] >= 64 and r1["resumed_from"] is None
+    second = subprocess.run(cmd + ["--total-steps", "128"], capture_output=True, text=True, timeout=300)
+    assert second.returncode == 0, second.stderr[-2000:]
+    r2 = json.loads(second.stdout.strip().splitlines()[-1])
+    assert r2["resumed_from"] is not None and r2["global_step"] >= 128
+    assert (tmp_path / "policy" / "policy.pt").is_file() and (tmp_path / "metrics.jsonl").is_file()
