@@ -78,3 +78,30 @@ def test_train_entry_point_checkpoints_and_resumes(tmp_path):
     r2 = json.loads(second.stdout.strip().splitlines()[-1])
     assert r2["resumed_from"] is not None and r2["global_step"] >= 128
     assert (tmp_path / "policy" / "policy.pt").is_file() and (tmp_path / "metrics.jsonl").is_file()
+
+
+def test_shipped_policy_loads_and_walks_a_path_briefly():
+    from pathlib import Path
+
+    from navzoo.agents.amp.evaluate import evaluate
+
+    policy_dir = Path(__file__).resolve().parents[2] / "policies" / "amp_pedestrian"
+    result = evaluate(str(policy_dir), envs=2, seconds=2.0, stage=1)
+    assert result["falls"] == 0 and result["mean_path_error_m"] < 0.5
+
+
+def test_export_from_a_checkpoint_of_another_env_size(tmp_path):
+    from navzoo.agents.amp.checkpoint import load_policy
+    from navzoo.agents.amp.learner import AmpConfig, AmpLearner
+    from navzoo.agents.amp.toy import CirclingPointMass, ToyConfig
+    from navzoo.agents.amp.train import export_from_checkpoint
+
+    env = CirclingPointMass(ToyConfig(num_envs=4))
+    learner = AmpLearner(env, AmpConfig(actor_hidden=(16,), critic_hidden=(16,), disc_hidden=(16,), rollout_steps=4,
+                                        minibatch_size=16, disc_minibatch_size=8))
+    learner.collect(4)
+    learner.update()
+    ckpt_dir = learner.save_checkpoint(tmp_path / "ckpt")
+    out = export_from_checkpoint(ckpt_dir, tmp_path / "policy")
+    act = load_policy(out)(np.zeros((7, env.obs_dim), np.float32))  # any batch size
+    assert act.shape == (7, env.act_dim) and np.isfinite(act).all()

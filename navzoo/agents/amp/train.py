@@ -105,3 +105,28 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+
+def export_from_checkpoint(ckpt_dir: str | Path, out: str | Path) -> Path:
+    """Write the deterministic policy (actor + observation normaliser) of a training checkpoint.
+
+    Unlike :meth:`AmpLearner.load_checkpoint`, this needs no env of the checkpoint's size: the policy
+    of a 240-env device run can be exported and evaluated on a laptop.
+    """
+    from navzoo.agents.amp import checkpoint as ckpt
+    from navzoo.agents.amp.learner import AmpConfig
+    from navzoo.agents.amp.networks import Actor
+    from navzoo.agents.amp.normalizer import RunningMeanStd
+
+    tensors, meta = ckpt.load_checkpoint(ckpt_dir)
+    cfg = AmpConfig.from_dict(meta["config"])
+    dims = meta["dims"]
+    actor = Actor(dims["obs_dim"], dims["act_dim"], cfg.actor_hidden, cfg.activation, cfg.init_log_std, cfg.learn_std)
+    actor.load_state_dict(tensors["actor"])
+    obs_norm = RunningMeanStd(dims["obs_dim"], cfg.norm_eps, cfg.obs_clip)
+    obs_norm.load_state_dict(tensors["obs_norm"])
+    return ckpt.export_policy_files(out, actor, obs_norm, {
+        "obs_dim": dims["obs_dim"], "act_dim": dims["act_dim"], "actor_hidden": list(cfg.actor_hidden),
+        "activation": cfg.activation, "action_low": -1.0, "action_high": 1.0,
+        "trained_iterations": int(meta["iteration"]), "trained_steps": int(meta["counters"].get("global_step", 0)),
+    })

@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Train (or resume) the AMP pedestrian controller on the accelerator machine, within one device call.
+#
+#   device run, carry [".whl"]:  TRAIN_S=500 LIMIT_S=455 bash scripts/device_train_amp.sh
+#
+# Resumes from the checkpoint committed in training/amp (RESUME_DIR), trains for LIMIT_S seconds on
+# 15 worker processes x 16 humanoids with the networks on the GPU, and writes the new checkpoint to
+# $OUT split in 15 MiB parts (the device tool returns files of at most 16 MiB), with metrics.jsonl and
+# the log. Copy those files back into training/amp to continue in a later session.
+set -u
+python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/*.whl 2>&1 | grep -v "already exists" | tail -2
+export PYTHONPATH=/tmp/site:$PWD
+nproc; nvidia-smi --query-gpu=name,memory.total --format=csv,noheader
+python3 -c "import navzoo, torch, pybullet; print('navzoo ok, cuda', torch.cuda.is_available(), torch.__version__)"
+RESUME_DIR=${RESUME_DIR:-training/amp}
+mkdir -p /tmp/amp/checkpoints
+if [ -f "$RESUME_DIR/name" ]; then
+  name=$(cat "$RESUME_DIR/name")
+  mkdir -p /tmp/amp/checkpoints/$name
+  cat "$RESUME_DIR"/state.pt.part-* > /tmp/amp/checkpoints/$name/state.pt
+  cp "$RESUME_DIR/meta.json" /tmp/amp/checkpoints/$name/ && cp "$RESUME_DIR/latest.json" /tmp/amp/checkpoints/
+  [ -f "$RESUME_DIR/metrics.jsonl" ] && cp "$RESUME_DIR/metrics.jsonl" /tmp/amp/
+  echo "resuming from $name"
+fi
+timeout "${TRAIN_S:-500}" python3 -m navzoo.agents.amp.train --out /tmp/amp --workers 15 --envs-per-worker 16 \
+  --device cuda --hidden 1024,512 --minibatch-size 1920 --time-limit-s "${LIMIT_S:-455}" --total-steps 500000000 \
+  --ckpt-every 10 --ckpt-replay-rows 8000 --stage "${STAGE:-1}" --json > "$OUT/train.log" 2>&1
+echo "train rc=$?"
+tail -5 "$OUT/train.log"
+cp /tmp/amp/metrics.jsonl "$OUT/" 2>/dev/null
+name=$(python3 -c "import json;print(json.load(open('/tmp/amp/checkpoints/latest.json'))['checkpoint'])")
+echo "$name" > "$OUT/name"
+cp /tmp/amp/checkpoints/latest.json /tmp/amp/checkpoints/$name/meta.json "$OUT/"
+split -b 15m /tmp/amp/checkpoints/$name/state.pt "$OUT/state.pt.part-"
+ls -la "$OUT"
