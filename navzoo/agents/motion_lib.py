@@ -30,12 +30,27 @@ from pathlib import Path
 
 import numpy as np
 
+from navzoo.agents import quat as _quat
 from navzoo.agents.motion import CLIP_JOINTS, SPHERICAL_JOINTS
 from navzoo.agents.reference import ReferenceState
 
 LIBRARY_FORMAT = "navzoo-motion-library"
 LIBRARY_VERSION = 1
 DEFAULT_NAME = "library"
+
+
+# Quaternion helpers, defined in navzoo.agents.quat and re-exported here for this module's callers.
+heading_of = _quat.heading
+quat_about_z = _quat.quat_about_z
+quat_angle = _quat.quat_angle
+quat_canonical = _quat.quat_canonical
+quat_conj = _quat.quat_conj
+quat_from_rotvec = _quat.quat_from_rotvec
+quat_mul = _quat.quat_mul
+quat_normalize = _quat.quat_normalize
+quat_rotate = _quat.quat_rotate
+quat_slerp = _quat.quat_slerp
+quat_to_rotvec = _quat.quat_to_rotvec
 
 # --------------------------------------------------------------------------------------------------
 # The humanoid (humanoid/humanoid.urdf, URDF_MAINTAIN_LINK_ORDER, globalScaling 0.25)
@@ -93,109 +108,6 @@ _FIELD_SHAPES = {
     "root_pos": (3,), "root_quat": (4,), "sph": (8, 4), "rev": (4,),
     "root_lin_vel": (3,), "root_ang_vel": (3,), "sph_vel": (8, 3), "rev_vel": (4,),
 }  # fmt: skip
-
-# --------------------------------------------------------------------------------------------------
-# Quaternions (x, y, z, w), vectorised over leading axes
-# --------------------------------------------------------------------------------------------------
-
-
-def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product ``a * b`` (rotation ``b`` first, then ``a``)."""
-    ax, ay, az, aw = np.moveaxis(np.asarray(a, dtype=np.float64), -1, 0)
-    bx, by, bz, bw = np.moveaxis(np.asarray(b, dtype=np.float64), -1, 0)
-    return np.stack(
-        [
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz,
-        ],
-        axis=-1,
-    )
-
-
-def quat_conj(q: np.ndarray) -> np.ndarray:
-    q = np.asarray(q, dtype=np.float64)
-    return np.concatenate([-q[..., :3], q[..., 3:]], axis=-1)
-
-
-def quat_normalize(q: np.ndarray) -> np.ndarray:
-    q = np.asarray(q, dtype=np.float64)
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
-
-
-def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4)."""
-    q = np.asarray(q, dtype=np.float64)
-    u, w = q[..., :3], q[..., 3:]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
-
-
-def quat_from_rotvec(v: np.ndarray) -> np.ndarray:
-    """Exponential map: rotation vectors (..., 3) -> unit quaternions (..., 4)."""
-    v = np.asarray(v, dtype=np.float64)
-    angle = np.linalg.norm(v, axis=-1, keepdims=True)
-    small = angle < 1e-8
-    k = np.where(small, 0.5 - angle**2 / 48.0, np.sin(0.5 * angle) / np.where(small, 1.0, angle))
-    return np.concatenate([v * k, np.cos(0.5 * angle)], axis=-1)
-
-
-def quat_to_rotvec(q: np.ndarray) -> np.ndarray:
-    """Logarithm map of unit quaternions (..., 4) -> rotation vectors (..., 3), angle in [0, pi]."""
-    q = np.asarray(q, dtype=np.float64)
-    q = np.where(q[..., 3:] < 0, -q, q)
-    s = np.linalg.norm(q[..., :3], axis=-1, keepdims=True)
-    angle = 2.0 * np.arctan2(s, q[..., 3:])
-    small = s < 1e-8
-    k = np.where(small, 2.0 / np.maximum(q[..., 3:], 1e-12), angle / np.where(small, 1.0, s))
-    return q[..., :3] * k
-
-
-def quat_angle(q: np.ndarray) -> np.ndarray:
-    """Rotation angle (rad, in [0, pi]) of unit quaternions."""
-    q = np.asarray(q, dtype=np.float64)
-    return 2.0 * np.arctan2(np.linalg.norm(q[..., :3], axis=-1), np.abs(q[..., 3]))
-
-
-def quat_slerp(q0: np.ndarray, q1: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """Spherical linear interpolation along the shortest arc; ``a`` broadcasts against ``q[..., 0]``."""
-    q0 = np.asarray(q0, dtype=np.float64)
-    q1 = np.asarray(q1, dtype=np.float64)
-    a = np.asarray(a, dtype=np.float64)[..., None]
-    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
-    q1 = np.where(dot < 0, -q1, q1)
-    dot = np.abs(dot)
-    near = dot > 0.9995
-    theta = np.arccos(np.clip(dot, -1.0, 1.0))
-    sin_t = np.sin(theta)
-    safe = np.where(near, 1.0, sin_t)
-    w0 = np.where(near, 1.0 - a, np.sin((1.0 - a) * theta) / safe)
-    w1 = np.where(near, a, np.sin(a * theta) / safe)
-    return quat_normalize(w0 * q0 + w1 * q1)
-
-
-def quat_about_z(angle: np.ndarray) -> np.ndarray:
-    angle = np.asarray(angle, dtype=np.float64)
-    z = np.zeros_like(angle)
-    return np.stack([z, z, np.sin(0.5 * angle), np.cos(0.5 * angle)], axis=-1)
-
-
-def quat_canonical(q: np.ndarray) -> np.ndarray:
-    """Sign-fix a sequence of quaternions (axis 0 = time) so consecutive ones have positive dot products."""
-    q = np.array(q, dtype=np.float64, copy=True)
-    if q.shape[0] < 2:
-        return q
-    dots = np.sum(q[1:] * q[:-1], axis=-1)
-    flips = np.cumsum(dots < 0, axis=0) % 2
-    q[1:] *= np.where(flips[..., None] == 1, -1.0, 1.0)
-    return q
-
-
-def heading_of(root_quat: np.ndarray) -> np.ndarray:
-    """Yaw (rad) of the body's forward axis (URDF +x) for base orientations (..., 4)."""
-    f = quat_rotate(root_quat, np.array([1.0, 0.0, 0.0]))
-    return np.arctan2(f[..., 1], f[..., 0])
 
 
 # --------------------------------------------------------------------------------------------------

@@ -42,8 +42,20 @@ from pathlib import Path
 
 import numpy as np
 
+from navzoo.agents import quat as _quat
 from navzoo.agents.motion import REVOLUTE_JOINTS, SPHERICAL_JOINTS
 from navzoo.agents.reference import ReferenceState
+
+# Quaternion helpers, defined in navzoo.agents.quat and re-exported here for this module's callers.
+_cross = _quat._cross
+heading = _quat.heading
+yaw_quat = _quat.quat_about_z
+quat_conj = _quat.quat_conj
+quat_from_rotvec = _quat.quat_from_rotvec
+quat_mul = _quat.quat_mul
+quat_rotate = _quat.quat_rotate
+quat_to_matrix = _quat.quat_to_matrix
+quat_to_rotvec = _quat.quat_to_rotvec
 
 # ----------------------------------------------------------------------------------------------
 # Model constants (humanoid/humanoid.urdf with URDF_MAINTAIN_LINK_ORDER: link index = joint index)
@@ -85,91 +97,6 @@ _EX = np.array([1.0, 0.0, 0.0])
 _EY = np.array([0.0, 1.0, 0.0])
 _EZ = np.array([0.0, 0.0, 1.0])
 
-# ----------------------------------------------------------------------------------------------
-# Quaternion helpers, (x, y, z, w), broadcasting over leading axes
-# ----------------------------------------------------------------------------------------------
-
-
-def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product ``a * b`` (apply ``b`` first, then ``a``)."""
-    ax, ay, az, aw = np.moveaxis(a, -1, 0)
-    bx, by, bz, bw = np.moveaxis(b, -1, 0)
-    return np.stack(
-        [
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz,
-        ],
-        axis=-1,
-    )
-
-
-def quat_conj(q: np.ndarray) -> np.ndarray:
-    return np.concatenate([-q[..., :3], q[..., 3:]], axis=-1)
-
-
-def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4)."""
-    u = q[..., :3]
-    w = q[..., 3:]
-    t = 2.0 * _cross(u, v)
-    return v + w * t + _cross(u, t)
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """np.cross for (..., 3) arrays, without its per-call overhead."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
-def quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """(..., 4) unit quaternions -> (..., 3, 3) rotation matrices."""
-    x, y, z, w = np.moveaxis(q, -1, 0)
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
-        ],
-        axis=-2,
-    )
-
-
-def quat_from_rotvec(v: np.ndarray) -> np.ndarray:
-    """Exponential map: rotation vectors (axis * angle, ..., 3) -> unit quaternions (..., 4)."""
-    v = np.asarray(v, dtype=np.float64)
-    angle = np.linalg.norm(v, axis=-1, keepdims=True)
-    half = 0.5 * angle
-    small = angle < 1e-8
-    # sin(a/2)/a, with its Taylor expansion near 0.
-    k = np.where(small, 0.5 - angle**2 / 48.0, np.sin(half) / np.where(small, 1.0, angle))
-    return np.concatenate([v * k, np.cos(half)], axis=-1)
-
-
-def quat_to_rotvec(q: np.ndarray) -> np.ndarray:
-    """Logarithm map of unit quaternions (..., 4) -> rotation vectors (..., 3), angle in [0, pi]."""
-    q = np.asarray(q, dtype=np.float64)
-    q = np.where(q[..., 3:] < 0, -q, q)  # shortest arc
-    s = np.linalg.norm(q[..., :3], axis=-1, keepdims=True)
-    angle = 2.0 * np.arctan2(s, q[..., 3:])
-    small = s < 1e-8
-    k = np.where(small, 2.0 / np.maximum(q[..., 3:], 1e-12), angle / np.where(small, 1.0, s))
-    return q[..., :3] * k
-
-
-def heading(quat: np.ndarray) -> np.ndarray:
-    """Heading (rad) of base orientations (..., 4): the yaw of the body's forward axis (base +x)."""
-    f = quat_rotate(np.asarray(quat, dtype=np.float64), _EX)
-    return np.arctan2(f[..., 1], f[..., 0])
-
-
-def yaw_quat(yaw: np.ndarray) -> np.ndarray:
-    """Quaternions of rotations by ``yaw`` about world z."""
-    yaw = np.asarray(yaw, dtype=np.float64)
-    z = np.zeros_like(yaw)
-    return np.stack([z, z, np.sin(0.5 * yaw), np.cos(0.5 * yaw)], axis=-1)
 
 
 def to_heading_frame(quat: np.ndarray, v: np.ndarray) -> np.ndarray:
