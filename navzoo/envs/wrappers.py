@@ -13,7 +13,35 @@ from navzoo.agents.policy import Policy
 from navzoo.envs.nav_env import NavEnv
 
 
-class FrozenAgents(ParallelEnv):
+class _NavWrapper(ParallelEnv):
+    """What every navzoo parallel wrapper forwards unchanged to the env it wraps."""
+
+    def __init__(self, env: ParallelEnv) -> None:
+        self.env = env
+        self.metadata = env.metadata
+
+    @property
+    def unwrapped(self) -> NavEnv:
+        return self.env.unwrapped
+
+    @property
+    def render_mode(self) -> str | None:
+        return self.env.render_mode
+
+    def observation_space(self, agent: str):
+        return self.env.observation_space(agent)
+
+    def action_space(self, agent: str):
+        return self.env.action_space(agent)
+
+    def render(self):
+        return self.env.render()
+
+    def close(self) -> None:
+        self.env.close()
+
+
+class FrozenAgents(_NavWrapper):
     """Owns a fixed policy for some agents, feeds their actions each step and hides them.
 
     The learner sees only the other agents: ``possible_agents``, ``agents``, spaces, observations,
@@ -28,7 +56,7 @@ class FrozenAgents(ParallelEnv):
     """
 
     def __init__(self, env: ParallelEnv, frozen: Iterable[str] | Callable[[str], bool], policy: Policy) -> None:
-        self.env = env
+        super().__init__(env)
         names = list(env.possible_agents)
         if callable(frozen):
             self.frozen = frozenset(a for a in names if frozen(a))
@@ -41,26 +69,11 @@ class FrozenAgents(ParallelEnv):
             raise TypeError(f"policy must implement reset(env) and act(observations, env), got {type(policy).__name__}")
         self.policy = policy
         self.possible_agents = [a for a in names if a not in self.frozen]
-        self.metadata = env.metadata
         self._frozen_obs: dict[str, Any] = {}
-
-    @property
-    def unwrapped(self) -> NavEnv:
-        return self.env.unwrapped
 
     @property
     def agents(self) -> list[str]:
         return [a for a in self.env.agents if a not in self.frozen]
-
-    @property
-    def render_mode(self) -> str | None:
-        return self.env.render_mode
-
-    def observation_space(self, agent: str):
-        return self.env.observation_space(agent)
-
-    def action_space(self, agent: str):
-        return self.env.action_space(agent)
 
     def _split(self, d: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
         mine = {a: v for a, v in d.items() if a not in self.frozen}
@@ -86,14 +99,8 @@ class FrozenAgents(ParallelEnv):
         obs, self._frozen_obs = self._split(obs)
         return obs, self._split(rew)[0], self._split(term)[0], self._split(trunc)[0], self._split(infos)[0]
 
-    def render(self):
-        return self.env.render()
 
-    def close(self) -> None:
-        self.env.close()
-
-
-class PadFinishedAgents(ParallelEnv):
+class PadFinishedAgents(_NavWrapper):
     """Keep agents that finished early as zero entries until the episode ends.
 
     Vector wrappers (SuperSuit's ``pettingzoo_env_to_vec_env_v1``) need a fixed set of agents.
@@ -106,27 +113,12 @@ class PadFinishedAgents(ParallelEnv):
     """
 
     def __init__(self, env: ParallelEnv) -> None:
-        self.env = env
+        super().__init__(env)
         self.possible_agents = list(env.possible_agents)
-        self.metadata = env.metadata
         self.agents: list[str] = []
         for a in self.possible_agents:
             if not isinstance(env.observation_space(a), gymnasium.spaces.Box):
                 raise TypeError(f"PadFinishedAgents needs Box observations (flat_obs=True); {a} has {env.observation_space(a)}")
-
-    @property
-    def unwrapped(self) -> NavEnv:
-        return self.env.unwrapped
-
-    @property
-    def render_mode(self) -> str | None:
-        return self.env.render_mode
-
-    def observation_space(self, agent: str):
-        return self.env.observation_space(agent)
-
-    def action_space(self, agent: str):
-        return self.env.action_space(agent)
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         obs, infos = self.env.reset(seed=seed, options=options)
@@ -149,12 +141,6 @@ class PadFinishedAgents(ParallelEnv):
         if over:
             self.agents = []
         return out_obs, out_rew, out_term, out_trunc, out_info
-
-    def render(self):
-        return self.env.render()
-
-    def close(self) -> None:
-        self.env.close()
 
 
 class SingleRobotEnv(gymnasium.Env):
