@@ -13,13 +13,18 @@ import numpy as np
 import pybullet as p
 from scipy.spatial.transform import Rotation
 
-from navzoo.agents.motion import CLIP_JOINTS, REVOLUTE_JOINTS, WalkCycle, load_deepmimic_cycle, sample_cycle
+from navzoo.agents.motion import (
+    CLIP_JOINTS,
+    HUMANOID_SCALE,
+    HUMANOID_URDF,
+    N_LINKS,
+    REVOLUTE_JOINTS,
+    WalkCycle,
+    load_deepmimic_cycle,
+    sample_cycle,
+)
 from navzoo.sim import quiet
 from navzoo.world.builder import GROUP_HUMAN, GROUP_ROBOT
-
-HUMANOID_URDF = "humanoid/humanoid.urdf"
-HUMANOID_SCALE = 0.25  # DeepMimic's scale: about 1.64 m tall
-N_LINKS = 15
 
 
 class HumanoidBodies:

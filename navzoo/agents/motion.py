@@ -16,6 +16,12 @@ import numpy as np
 import pybullet_data
 from scipy.spatial.transform import Rotation
 
+# The pedestrian body: pybullet_data's 15-body DeepMimic humanoid, loaded with globalScaling=0.25
+# (about 1.64 m tall) and URDF_MAINTAIN_LINK_ORDER (link index = joint index).
+HUMANOID_URDF = "humanoid/humanoid.urdf"
+HUMANOID_SCALE = 0.25
+N_LINKS = 15
+
 # Joint indices of humanoid/humanoid.urdf (URDF_MAINTAIN_LINK_ORDER) in the order DeepMimic clips
 # store them; the wrists (8, 14) are fixed joints.
 CLIP_JOINTS: tuple[int, ...] = (1, 2, 3, 4, 5, 6, 7, 9, 10, 11, 12, 13)

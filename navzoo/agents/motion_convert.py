@@ -34,6 +34,7 @@ from scipy.spatial.transform import Rotation
 
 from navzoo.agents import mocap_io
 from navzoo.agents.mocap_io import MocapClip, MocapFormatError
+from navzoo.agents.motion import HUMANOID_SCALE, HUMANOID_URDF
 from navzoo.agents.motion_lib import (
     FIELDS,
     JOINT_ORIGINS,
@@ -778,9 +779,9 @@ def _pybullet_fk_check(frames: dict[str, np.ndarray], stride: int = 1) -> float:
     try:
         with quiet():
             body = p.loadURDF(
-                "humanoid/humanoid.urdf",
+                HUMANOID_URDF,
                 [0, 0, 1],
-                globalScaling=0.25,
+                globalScaling=HUMANOID_SCALE,
                 flags=p.URDF_MAINTAIN_LINK_ORDER,
                 physicsClientId=cid,
             )

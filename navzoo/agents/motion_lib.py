@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from navzoo.agents import quat as _quat
-from navzoo.agents.motion import CLIP_JOINTS, SPHERICAL_JOINTS
+from navzoo.agents.motion import CLIP_JOINTS, HUMANOID_SCALE, SPHERICAL_JOINTS
 from navzoo.agents.reference import ReferenceState
 
 LIBRARY_FORMAT = "navzoo-motion-library"
@@ -56,7 +56,6 @@ quat_to_rotvec = _quat.quat_to_rotvec
 # The humanoid (humanoid/humanoid.urdf, URDF_MAINTAIN_LINK_ORDER, globalScaling 0.25)
 # --------------------------------------------------------------------------------------------------
 
-HUMANOID_SCALE = 0.25
 LINK_NAMES: tuple[str, ...] = (
     "root", "chest", "neck", "right_hip", "right_knee", "right_ankle", "right_shoulder", "right_elbow",
     "right_wrist", "left_hip", "left_knee", "left_ankle", "left_shoulder", "left_elbow", "left_wrist",

@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from navzoo.agents import quat as _quat
-from navzoo.agents.motion import REVOLUTE_JOINTS, SPHERICAL_JOINTS
+from navzoo.agents.motion import HUMANOID_SCALE, N_LINKS, REVOLUTE_JOINTS, SPHERICAL_JOINTS
 from navzoo.agents.reference import ReferenceState
 
 # Quaternion helpers, defined in navzoo.agents.quat and re-exported here for this module's callers.
@@ -61,8 +61,6 @@ quat_to_rotvec = _quat.quat_to_rotvec
 # Model constants (humanoid/humanoid.urdf with URDF_MAINTAIN_LINK_ORDER: link index = joint index)
 # ----------------------------------------------------------------------------------------------
 
-HUMANOID_SCALE = 0.25
-N_LINKS = 15
 SPH: tuple[int, ...] = (
     SPHERICAL_JOINTS  # (1 chest, 2 neck, 3 r_hip, 5 r_ankle, 6 r_shoulder, 9 l_hip, 11 l_ankle, 12 l_shoulder)
 )

@@ -52,13 +52,11 @@ from navzoo.agents.amp.features import (
     quat_to_rotvec,
     yaw_quat,
 )
-from navzoo.agents.motion import CLIP_JOINTS
+from navzoo.agents.motion import CLIP_JOINTS, HUMANOID_SCALE, HUMANOID_URDF
 from navzoo.agents.reference import ReferenceState
 from navzoo.sim import quiet
 from navzoo.world.builder import GROUP_HUMAN, GROUP_ROBOT, GROUP_STATIC, MASK_ALL
 
-HUMANOID_URDF = "humanoid/humanoid.urdf"
-HUMANOID_SCALE = 0.25
 #: Joints driven by the PD controller, in the order of ``setJointMotorControlMultiDofArray`` calls
 #: (the DeepMimic clip order: 1 chest, 2 neck, 3 r_hip, 4 r_knee, 5 r_ankle, 6 r_shoulder, 7 r_elbow,
 #: 9 l_hip, 10 l_knee, 11 l_ankle, 12 l_shoulder, 13 l_elbow).
