@@ -32,6 +32,7 @@ pybullet's DeepMimic env), unless ``self_collision=False``.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -363,6 +364,8 @@ class PhysicsHumanoids:
         self._state: dict[str, np.ndarray] | None = None
         self._torque: np.ndarray | None = None  # motor mode: (N, 28) applied torques of the last substep
         self._fresh = np.zeros(n, dtype=bool)  # re-initialised since the last step (no torque applied yet)
+        self._push_force = np.zeros((n, 3))  # external force on the pelvis (world frame, N)
+        self._push_left = np.zeros(n, dtype=int)  # physics substeps it still acts for
 
     # -- state -------------------------------------------------------------------------------------
 
@@ -398,6 +401,7 @@ class PhysicsHumanoids:
         self._target_rev_vel[idx] = 0.0
         self._motors_dirty = True
         self._fresh[idx] = True
+        self._push_left[idx] = 0
         self._state = None
         self._torque = None
 
@@ -434,9 +438,10 @@ class PhysicsHumanoids:
             self._target_vel_l = _vel_lists(sv, rv)
         self._motors_dirty = True
 
-    def step(self) -> None:
+    def step(self, before_substep: Callable[[], None] | None = None) -> None:
         """One control step: ``substeps`` physics steps. Stable PD: the command of every body is re-sent
-        before each substep (N calls + 1 ``stepSimulation`` per substep). Motors: sent once."""
+        before each substep (N calls + 1 ``stepSimulation`` per substep). Motors: sent once.
+        ``before_substep`` runs before every physics step (e.g. to drive other bodies of the client)."""
         cid = self.client
         joints = CONTROL_JOINTS
         forces = self._forces_l
@@ -456,6 +461,9 @@ class PhysicsHumanoids:
                         forces=forces,
                         physicsClientId=cid,
                     )
+                self._apply_pushes()
+                if before_substep is not None:
+                    before_substep()
                 p.stepSimulation(physicsClientId=cid)
         else:
             if self._motors_dirty:
@@ -473,10 +481,34 @@ class PhysicsHumanoids:
                     )
                 self._motors_dirty = False
             for _ in range(self.substeps):
+                self._apply_pushes()
+                if before_substep is not None:
+                    before_substep()
                 p.stepSimulation(physicsClientId=cid)
         self._fresh[:] = False
         self._state = None
         self._torque = None
+
+    def push(self, idx: np.ndarray | list[int], force: np.ndarray, seconds: float) -> None:
+        """Push humanoids ``idx`` with a constant world-frame ``force`` (len(idx), 3) in N on the pelvis
+        (at its centre of mass) for ``seconds`` of simulated time, starting with the next :meth:`step`.
+        A new push replaces one still acting. PyBullet clears external forces after every physics step,
+        so the force is re-applied before each substep."""
+        idx = np.asarray(idx, dtype=int).reshape(-1)
+        force = np.asarray(force, dtype=float).reshape(idx.size, 3)
+        if not np.isfinite(force).all() or not np.isfinite(seconds) or seconds < 0:
+            raise ValueError("push force must be finite and seconds >= 0")
+        self._push_force[idx] = force
+        self._push_left[idx] = int(round(seconds * self.physics_hz))
+
+    def _apply_pushes(self) -> None:
+        active = np.flatnonzero(self._push_left > 0)
+        for i in active:
+            body = self.ids[i]
+            pos = p.getBasePositionAndOrientation(body, physicsClientId=self.client)[0]
+            p.applyExternalForce(body, -1, self._push_force[i].tolist(), pos, p.WORLD_FRAME,
+                                 physicsClientId=self.client)
+        self._push_left[active] -= 1
 
     def read_state(self) -> dict[str, np.ndarray]:
         """State of every humanoid (four PyBullet calls per body), as float64 arrays:

@@ -1,0 +1,86 @@
+"""Short-horizon 2D target trajectories for physics pedestrians, rolled out with the social force model.
+
+An articulated pedestrian cannot follow a crowd model's velocity command directly: its controller is
+trained to follow a *trajectory* (the next few seconds of target points). :func:`sfm_rollout` produces
+that trajectory by integrating the social force model forward from the body's actual position and
+velocity for a few seconds, with the other agents extrapolated at constant velocity and walls as
+repulsive segments. Re-running it every couple of seconds ("replanning") keeps the target attached to
+the body while it reacts to the crowd. Used by curriculum stage 3 of the AMP training task
+(:mod:`navzoo.agents.amp.path_env`) and by ``human_model="amp"`` in :class:`navzoo.envs.nav_env.NavEnv`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from navzoo.agents.sfm import SocialForceParams, social_force_velocities
+
+PrefVelocity = Callable[[np.ndarray, int], np.ndarray]
+
+
+def goal_pref_velocity(goals: np.ndarray, speed: np.ndarray, slow_radius: float = 1.0) -> PrefVelocity:
+    """Preferred velocity towards fixed ``goals`` (N, 2) at ``speed`` (N,), slowing to rest inside
+    ``slow_radius`` of the goal (so a rollout that reaches its goal stands there)."""
+    goals = np.asarray(goals, dtype=float)
+    speed = np.asarray(speed, dtype=float)
+
+    def pref(pos: np.ndarray, _k: int) -> np.ndarray:
+        d = goals - pos
+        dist = np.linalg.norm(d, axis=1, keepdims=True)
+        unit = d / np.maximum(dist, 1e-9)
+        v = speed[:, None] * np.minimum(1.0, dist / slow_radius)
+        return unit * v
+
+    return pref
+
+
+def sfm_rollout(
+    pos: np.ndarray,
+    vel: np.ndarray,
+    pref_velocity: PrefVelocity,
+    steps: int,
+    dt: float,
+    *,
+    max_speed: np.ndarray | float = 2.0,
+    radius: np.ndarray | float = 0.3,
+    params: SocialForceParams | None = None,
+    others_pos: np.ndarray | None = None,
+    others_vel: np.ndarray | None = None,
+    others_radius: float = 0.3,
+    segments: np.ndarray | None = None,
+    segment_groups: np.ndarray | None = None,
+) -> np.ndarray:
+    """Positions (N, steps + 1, 2) of N people integrated with the social force model for ``steps``
+    steps of ``dt`` from ``pos``/``vel`` (row 0 is ``pos``). People interact with each other, with
+    ``others`` (e.g. robots, or people not being planned) moving at constant velocity, and with wall
+    ``segments``. ``pref_velocity(pos, k)`` gives each person's preferred velocity at step k."""
+    params = params or SocialForceParams()
+    p = np.asarray(pos, dtype=float).copy()
+    v = np.asarray(vel, dtype=float).copy()
+    if p.ndim != 2 or p.shape[1] != 2 or v.shape != p.shape:
+        raise ValueError(f"pos and vel must both be (N, 2), got {p.shape} and {v.shape}")
+    out = np.empty((p.shape[0], steps + 1, 2))
+    out[:, 0] = p
+    op = None if others_pos is None or len(others_pos) == 0 else np.asarray(others_pos, dtype=float)
+    ov = None if op is None else (np.zeros_like(op) if others_vel is None else np.asarray(others_vel, dtype=float))
+    for k in range(steps):
+        o = None if op is None else op + (k * dt) * ov
+        v = social_force_velocities(p, v, pref_velocity(p, k), radius, max_speed, dt, params, segments,
+                                    o, ov, others_radius, segment_groups)
+        p = p + dt * v
+        out[:, k + 1] = p
+    return out
+
+
+def resample(path: np.ndarray, src_dt: float, dst_dt: float, n: int) -> np.ndarray:
+    """Linear resampling of trajectories (N, T, 2) sampled every ``src_dt`` to ``n`` points every
+    ``dst_dt`` (points past the end repeat the last one)."""
+    t_src = np.arange(path.shape[1]) * src_dt
+    t_dst = np.minimum(np.arange(n) * dst_dt, t_src[-1])
+    i = np.clip(np.searchsorted(t_src, t_dst, side="right") - 1, 0, path.shape[1] - 2) if path.shape[1] > 1 else None
+    if i is None:
+        return np.repeat(path[:, :1], n, axis=1)
+    w = ((t_dst - t_src[i]) / src_dt)[None, :, None]
+    return path[:, i] * (1.0 - w) + path[:, i + 1] * w
