@@ -14,7 +14,8 @@ from typing import Any, Literal
 from navzoo.agents.robot import RobotSpec
 
 CrowdModel = Literal["sfm", "orca", "orca_rvo2"]
-HumanModel = Literal["kinematic"]
+HumanModel = Literal["kinematic", "amp"]
+AMP_CONTROL_HZ = 30  # control rate of the AMP pedestrian controller (its training rate)
 
 
 @dataclass(frozen=True)
@@ -27,7 +28,11 @@ class NavConfig:
         n_humans: number of pedestrians (agents ``human_0..``); ``None`` = the scene's default.
         robot: robot model and limits.
         human_model: pedestrian body controller; ``"kinematic"`` (root follows the planar command,
-            joints play a walk cycle). The AMP joint controller plugs in here.
+            joints play a walk cycle) or ``"amp"`` (free-base physics humanoids; a pedestrian's action
+            is its 28 joint PD targets, its observation the AMP controller's input, and its target
+            trajectory comes from ``crowd_model`` rolled out from the body's actual state every
+            ``amp_replan_seconds``; needs ``dt`` a multiple of 1/30 s, ``navzoo.make`` uses 1/30 s;
+            see docs/pedestrians.md).
         crowd_model: rule-based trajectory generator of frozen pedestrians: ``"sfm"`` (social
             force), ``"orca"`` (navzoo's ORCA) or ``"orca_rvo2"`` (ORCA with RVO2's exact
             semantics, as CrowdNav's pedestrians).
@@ -42,7 +47,9 @@ class NavConfig:
             test episodes).
         human_max_speed: speed that a human action of norm 1 maps to (m/s).
         dt: control period (s).
-        physics_substeps: PyBullet steps per control step.
+        physics_substeps: PyBullet steps per control step (``human_model="amp"``: fixed by the
+            humanoids' 120 Hz physics, this field is ignored).
+        amp_replan_seconds: ``human_model="amp"``: period of the target trajectory rollouts (s).
         time_limit: episode length (s); ``None`` = the scene's own limit.
         goal_tolerance: a robot reaches its goal when closer than this (m); ``None`` = robot radius
             (CrowdNav's rule, as the paper's reward).
@@ -76,6 +83,7 @@ class NavConfig:
     human_max_speed: float = 2.0
     dt: float = 0.1
     physics_substeps: int = 2
+    amp_replan_seconds: float = 2.0
     time_limit: float | None = None
     goal_tolerance: float | None = None
     min_goal_distance: float = 3.0
@@ -103,8 +111,15 @@ class NavConfig:
             raise bad("n_humans", "None or an integer >= 0")
         if not isinstance(self.robot, RobotSpec):
             raise bad("robot", "a RobotSpec")
-        if self.human_model not in ("kinematic",):
-            raise bad("human_model", "'kinematic' (the AMP controller is not available in this version)")
+        if self.human_model not in ("kinematic", "amp"):
+            raise bad("human_model", "'kinematic' or 'amp'")
+        if self.human_model == "amp" and _is_pos(self.dt):
+            k = self.dt * AMP_CONTROL_HZ
+            if abs(k - round(k)) > 1e-6 or round(k) < 1:
+                raise ValueError(f"NavConfig.dt must be a multiple of 1/{AMP_CONTROL_HZ} s with human_model='amp' "
+                                 f"(the AMP controller's rate), got {self.dt!r}; use dt=1/{AMP_CONTROL_HZ}")
+        if not _is_pos(self.amp_replan_seconds):
+            raise bad("amp_replan_seconds", "a finite number > 0")
         if self.crowd_model not in ("sfm", "orca", "orca_rvo2"):
             raise bad("crowd_model", "'sfm', 'orca' or 'orca_rvo2'")
         if not isinstance(self.humans_see_robots, bool):

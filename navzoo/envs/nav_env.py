@@ -16,6 +16,7 @@ from navzoo import sim
 from navzoo.agents.humanoid import HumanoidBodies
 from navzoo.agents.robot import RobotBodies, command_velocity, wrap_angle
 from navzoo.envs import observations as obs_terms
+from navzoo.envs.amp_humans import AmpHumans
 from navzoo.envs.config import NavConfig
 from navzoo.envs.rewards import TERMS, RewardParams, navigation_reward
 from navzoo.world.builder import GROUP_ROBOT, GROUP_STATIC, build_scene
@@ -154,6 +155,14 @@ class NavEnv(ParallelEnv):
         self._act_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         self.observation_spaces = {a: self._obs_space for a in self.possible_agents}
         self.action_spaces = {a: self._act_space for a in self.possible_agents}
+        if cfg.human_model == "amp" and self.n_humans > 0:
+            from navzoo.envs import amp_humans
+
+            h_obs = spaces.Box(-np.inf, np.inf, shape=(amp_humans.OBS_DIM,), dtype=np.float32)
+            h_act = spaces.Box(-1.0, 1.0, shape=(amp_humans.ACT_DIM,), dtype=np.float32)
+            for a in self.possible_agents[self.n_robots:]:
+                self.observation_spaces[a] = h_obs
+                self.action_spaces[a] = h_act
 
         # PyBullet world: one client per env, bodies built once and moved on reset.
         self.client = sim.connect(gui=(render_mode == "human"))
@@ -168,13 +177,19 @@ class NavEnv(ParallelEnv):
                 p.setCollisionFilterGroupMask(body, link, GROUP_STATIC, GROUP_STATIC | GROUP_ROBOT,
                                               physicsClientId=self.client)
         self.robots = RobotBodies(self.client, cfg.robot, self.n_robots)
-        self.humans = HumanoidBodies(self.client, self.n_humans)
+        self.amp: AmpHumans | None = None
+        if cfg.human_model == "amp" and self.n_humans > 0:
+            self.amp = AmpHumans(self)  # sets the client's time step to 1/120 s
+            human_ids = self.amp.ids
+        else:
+            self.humans = HumanoidBodies(self.client, self.n_humans)
+            human_ids = self.humans.ids
         self._body_kind: dict[int, str] = {}
         for b in self.bodies.obstacle_ids:
             self._body_kind[b] = "obstacle"
         for b in self.robots.ids:
             self._body_kind[b] = "robot"
-        for b in self.humans.ids:
+        for b in human_ids:
             self._body_kind[b] = "human"
         self._saved_state = p.saveState(physicsClientId=self.client)
 
@@ -258,7 +273,13 @@ class NavEnv(ParallelEnv):
         self.arrived = np.zeros(N, dtype=bool)  # pedestrians done for good (human_at_goal="stop")
 
         self.robots.reset(self.pos[:R], self.yaw[:R])
-        self.humans.reset(self.pos[R:], self.yaw[R:], self.rng_crowd.uniform(0, 1, H))
+        self.human_fallen = np.zeros(H, dtype=bool)
+        self.human_map_contact = np.zeros(H, dtype=bool)
+        self.human_agent_contact = np.zeros(H, dtype=bool)
+        if self.amp is not None:
+            self.amp.reset(self.pos[R:], self.yaw[R:])
+        else:
+            self.humans.reset(self.pos[R:], self.yaw[R:], self.rng_crowd.uniform(0, 1, H))
         T = cfg.history
         self.hist_pos = np.repeat(self.pos[None], T, axis=0)
         self.hist_vel = np.zeros((T, N, 2))
@@ -320,7 +341,18 @@ class NavEnv(ParallelEnv):
 
         # Pedestrians (kinematic): the action is a velocity in the person's frame.
         hum = np.arange(R, self.n_total)
-        if hum.size:
+        if self.amp is not None:
+            self._human_blocked = np.zeros(hum.size, dtype=bool)
+            a_h = act[hum]
+            live_h = np.isin(hum, acting_idx)
+            if hum.size:  # fallen (done) pedestrians keep their last targets
+                sph0, rev0 = self.amp.bodies.targets
+                self.amp.set_actions(a_h)
+                if (~live_h).any():
+                    sph1, rev1 = self.amp.bodies.targets
+                    sph1[~live_h], rev1[~live_h] = sph0[~live_h], rev0[~live_h]
+                    self.amp.bodies.apply_targets(sph1, rev1)
+        elif hum.size:
             a_h = act[hum]
             norm = np.linalg.norm(a_h, axis=1, keepdims=True)
             a_h = np.where(norm > 1.0, a_h / np.maximum(norm, 1e-12), a_h)
@@ -348,13 +380,23 @@ class NavEnv(ParallelEnv):
 
         # Robots: limited velocity commands, applied at every physics substep.
         robot_alive = self.alive[:R].copy()
-        self.cmd, world = command_velocity(act[:R], self.cmd, self.yaw[:R], cfg.robot, dt)
+        self.cmd, world = command_velocity(act[:R, :2], self.cmd, self.yaw[:R], cfg.robot, dt)
         world[~robot_alive] = 0.0
         t0 = time.perf_counter()
-        for _ in range(cfg.physics_substeps):
-            self.robots.apply_velocity(world, robot_alive)
-            p.stepSimulation(physicsClientId=self.client)
+        if self.amp is not None:
+            for _ in range(self.amp.control_steps):
+                self.amp.control_step(lambda: self.robots.apply_velocity(world, robot_alive))
+        else:
+            for _ in range(cfg.physics_substeps):
+                self.robots.apply_velocity(world, robot_alive)
+                p.stepSimulation(physicsClientId=self.client)
         self.physics_time += time.perf_counter() - t0
+        if self.amp is not None and hum.size:
+            h_pos, h_yaw, h_vel, h_omega = self.amp.planar()
+            self.pos[hum], self.yaw[hum], self.vel[hum], self.omega[hum] = h_pos, h_yaw, h_vel, h_omega
+            self.amp.fallen |= self.amp.bodies.fallen()
+            self.human_map_contact, self.human_agent_contact = self.amp.contacts()
+            self.human_fallen = self.amp.fallen.copy()
         r_pos, r_yaw, tilt = self.robots.read_state()
         nan_state = bool(~np.isfinite(r_pos[robot_alive]).all() or ~np.isfinite(r_yaw[robot_alive]).all())
         if not nan_state:
@@ -377,6 +419,9 @@ class NavEnv(ParallelEnv):
         d_obs = self._clearance()
         human_reached = self._retarget_humans()
         reached[R:] = human_reached
+        if self.amp is not None and hum.size:
+            amp_terms = self.amp.task_reward()
+            self.amp.after_step(replan=bool(human_reached.any()))
         # After a re-target a pedestrian's distance jumps to its new goal: that step earns the goal
         # reward, not a progress penalty, so its previous distance is taken as the new one.
         d_prev = np.where(human_reached_mask(self.n_total, R, human_reached), self.d_goal, d_goal_prev)
@@ -384,6 +429,10 @@ class NavEnv(ParallelEnv):
             self.d_goal, d_prev, d_obs, reached, collided, np.where(self.is_robot, self.omega, 0.0),
             self.reward_params,
         )
+        if self.amp is not None and hum.size:
+            # Pedestrians' reward is the controller's task reward (r_tau + r_e + r_d); a learner adds
+            # the style reward of its discriminator.
+            rew[hum] = amp_terms["track"] + amp_terms["energy"] + amp_terms["direction"]
 
         # Bookkeeping: history, time.
         self.steps += 1
@@ -397,6 +446,8 @@ class NavEnv(ParallelEnv):
 
         terminated = np.zeros(self.n_total, dtype=bool)
         terminated[:R] = robot_alive & (reached[:R] | collided[:R])
+        if self.amp is not None:  # a pedestrian that fell is done (its body stays where it lies)
+            terminated[hum] = self.human_fallen & np.isin(hum, acting_idx)
         if nan_state:
             terminated[acting_idx] = True
         time_up = self.steps >= self.max_steps
@@ -428,6 +479,13 @@ class NavEnv(ParallelEnv):
             else:
                 info["goal_reached"] = bool(reached[i])
                 info["map_blocked"] = bool(self._human_blocked[i - R]) if self.n_humans else False
+                if self.amp is not None:
+                    j = i - R
+                    info["fallen"] = bool(self.human_fallen[j])
+                    info["map_contact"] = bool(self.human_map_contact[j])
+                    info["agent_contact"] = bool(self.human_agent_contact[j])
+                    for name in ("track", "energy", "direction", "path_error"):
+                        info[f"reward/{name}" if name != "path_error" else name] = float(amp_terms[name][j])
             if nan_state:
                 info["nan_state"] = True
             infos[a] = info
@@ -444,7 +502,8 @@ class NavEnv(ParallelEnv):
     def _validate_actions(self, actions: dict[str, Any]) -> np.ndarray:
         if not isinstance(actions, dict):
             raise TypeError(f"actions must be a dict {{agent: action}}, got {type(actions).__name__}")
-        out = np.zeros((self.n_total, 2))
+        width = max(self.action_spaces[a].shape[0] for a in self.possible_agents)
+        out = np.zeros((self.n_total, width))
         live = set(self.agents)
         for agent in actions:
             if agent not in self._index:
@@ -459,15 +518,16 @@ class NavEnv(ParallelEnv):
                 arr = np.asarray(a, dtype=np.float64)
             except (TypeError, ValueError) as exc:
                 raise ValueError(f"action of {agent!r} is not numeric: {a!r}") from exc
-            if arr.shape != (2,):
-                raise ValueError(f"action of {agent!r} must have shape (2,), got shape {arr.shape}")
+            shape = self.action_spaces[agent].shape
+            if arr.shape != shape:
+                raise ValueError(f"action of {agent!r} must have shape {shape}, got shape {arr.shape}")
             if not np.isfinite(arr).all():
                 raise ValueError(f"action of {agent!r} contains NaN or inf: {arr.tolist()}")
             i = self._index[agent]
             clipped = np.clip(arr, -1.0, 1.0)
             if np.any(clipped != arr):
                 self.action_clips[i] += 1
-            out[i] = clipped
+            out[i, : clipped.size] = clipped
         return out
 
     def _robot_collisions(self, prev_pos: np.ndarray, robot_alive: np.ndarray) -> dict[int, str]:
@@ -578,6 +638,16 @@ class NavEnv(ParallelEnv):
         if not agents:
             return {}
         cfg = self.config
+        out: dict[str, Any] = {}
+        if self.amp is not None:
+            humans = [a for a in agents if self._index[a] >= self.n_robots]
+            if humans:
+                h_obs = self.amp.observations()
+                for a in humans:
+                    out[a] = h_obs[self._index[a] - self.n_robots]
+            agents = [a for a in agents if self._index[a] < self.n_robots]
+            if not agents:
+                return out
         idx = np.array([self._index[a] for a in agents], dtype=int)
         goal = obs_terms.goal_features(self.pos[idx], self.yaw[idx], self.goal[idx])
         vel = obs_terms.velocity_features(self.vel[idx], self.yaw[idx], self.omega[idx])
@@ -586,7 +656,6 @@ class NavEnv(ParallelEnv):
             cfg.k_neighbors, cfg.sensor_range,
         )
         maps = self.grid.crop_many(self.pos[idx], self.yaw[idx], cfg.map_size, cfg.map_cells)
-        out = {}
         for n, a in enumerate(agents):
             o = {
                 "goal": goal[n].astype(np.float32),

@@ -13,7 +13,7 @@ from pettingzoo import ParallelEnv
 
 from navzoo.agents.crowd import CrowdPolicy
 from navzoo.agents.robot import RobotSpec
-from navzoo.envs.config import NavConfig
+from navzoo.envs.config import AMP_CONTROL_HZ, NavConfig
 from navzoo.envs.nav_env import NavEnv
 from navzoo.envs.wrappers import FrozenAgents
 
@@ -60,11 +60,18 @@ def make(env_id: str | None = None, render_mode: str | None = None, raw: bool = 
         render_mode: None, ``"rgb_array"`` or ``"human"``.
         raw: return the bare NavEnv (pedestrians are agents too).
         **overrides: NavConfig fields (``n_robots=2``, ``n_humans=20``, ``crowd_model="orca"``, ...)
-            and ``render_view``.
+            and ``render_view``. ``human_model="amp"`` freezes the pedestrians on the shipped AMP
+            controller and, unless ``dt`` is given, sets ``dt`` to its 1/30 s control period.
     """
+    if overrides.get("human_model") == "amp" and "dt" not in overrides:
+        overrides["dt"] = 1.0 / AMP_CONTROL_HZ  # the AMP controller acts at its training rate
     env = make_raw(env_id, render_mode=render_mode, **overrides)
     if raw:
         return env
+    if env.config.human_model == "amp":
+        from navzoo.agents.amp.pedestrian_policy import AmpPedestrianPolicy
+
+        return FrozenAgents(env, lambda a: a.startswith("human_"), AmpPedestrianPolicy())
     crowd = CrowdPolicy(env.config.crowd_model, see_robots=env.config.humans_see_robots)
     return FrozenAgents(env, lambda a: a.startswith("human_"), crowd)
 

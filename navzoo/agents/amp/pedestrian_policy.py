@@ -1,0 +1,49 @@
+"""The shipped AMP pedestrian controller as a frozen-agents policy: batched over all pedestrians."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from navzoo.agents.amp.checkpoint import load_policy
+
+if TYPE_CHECKING:
+    from navzoo.envs.nav_env import NavEnv
+
+
+def default_policy_dir() -> Path:
+    """Directory of the shipped AMP pedestrian policy (``policies/amp_pedestrian``)."""
+    import policies
+
+    for root in policies.__path__:  # a package, or a namespace (editable installs) with one real dir
+        if (Path(root) / "amp_pedestrian").is_dir():
+            return Path(root) / "amp_pedestrian"
+    raise FileNotFoundError(f"the shipped AMP policy is missing from {list(policies.__path__)}")
+
+
+class AmpPedestrianPolicy:
+    """Drives ``human_model="amp"`` pedestrians with an exported AMP policy, one forward pass per step
+    for all of them (deterministic: the action mean).
+
+    Args:
+        policy_dir: exported policy (``config.json`` + weights); default: the shipped one.
+        device: torch device of the forward pass.
+    """
+
+    def __init__(self, policy_dir: str | Path | None = None, device: str = "cpu") -> None:
+        self.policy_dir = Path(policy_dir) if policy_dir is not None else default_policy_dir()
+        self.policy = load_policy(self.policy_dir, device=device)
+
+    def reset(self, env: NavEnv) -> None:
+        if env.config.human_model != "amp":
+            raise ValueError("AmpPedestrianPolicy drives human_model='amp' pedestrians; "
+                             f"this env has human_model={env.config.human_model!r}")
+
+    def act(self, observations: dict[str, Any], env: NavEnv) -> dict[str, np.ndarray]:
+        names = list(observations)
+        if not names:
+            return {}
+        actions = self.policy(np.stack([np.asarray(observations[a], dtype=np.float32) for a in names]))
+        return {a: actions[k].astype(np.float32) for k, a in enumerate(names)}

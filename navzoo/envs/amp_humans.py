@@ -1,0 +1,189 @@
+"""Physics pedestrians of ``human_model="amp"``: free-base humanoids, their target trajectories and state.
+
+The env owns one :class:`AmpHumans`. Each pedestrian is a :class:`~navzoo.agents.amp.sim.PhysicsHumanoids`
+body in the env's PyBullet client (120 Hz physics, 30 Hz control, torque-limited joint motors) that
+collides with the scene, the robots and the other pedestrians. Its action is the 28 joint PD targets in
+[-1, 1]; its observation is the AMP controller's input: the body's self-observation and the next
+``n_waypoints`` points (every ``waypoint_dt``) of its target trajectory in its heading frame.
+
+Target trajectories come from the env's crowd model (social force or ORCA) following each person's A*
+path: every ``replan_seconds`` the model is rolled out from the bodies' *actual* positions and
+velocities for the horizon the controller looks ahead (plus one replanning period), the robots moving
+at constant velocity. The trajectory therefore stays attached to the body and reacts to the crowd,
+while the body's joints are left to the controller.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pybullet as p
+
+from navzoo.agents.amp.features import FEATURE_DIM, heading, self_observation, task_observation
+from navzoo.agents.amp.sim import ACTION_DIM, PhysicsHumanoids, actions_to_targets
+from navzoo.agents.orca import OrcaParams, orca_velocities
+from navzoo.agents.policy import preferred_velocity
+from navzoo.agents.sfm import SocialForceParams, social_force_velocities
+from navzoo.agents.target_paths import resample
+
+if TYPE_CHECKING:
+    from navzoo.envs.nav_env import NavEnv
+
+PHYSICS_HZ = 120
+CONTROL_HZ = 30
+N_WAYPOINTS = 10
+WAYPOINT_DT = 0.5
+OBS_DIM = FEATURE_DIM + 2 * N_WAYPOINTS
+ACT_DIM = ACTION_DIM
+PLAN_DT = 0.1
+
+
+class AmpHumans:
+    """The physics pedestrians of one :class:`~navzoo.envs.nav_env.NavEnv`."""
+
+    def __init__(self, env: NavEnv) -> None:
+        self.env = env
+        self.client = env.client
+        self.n = env.n_humans
+        self.control_steps = int(round(env.config.dt * CONTROL_HZ))
+        self.replan_steps = max(1, int(round(env.config.amp_replan_seconds * CONTROL_HZ)))
+        self.bodies = PhysicsHumanoids(self.client, self.n, physics_hz=PHYSICS_HZ, control_hz=CONTROL_HZ,
+                                       pd_mode="motor")
+        self.ids = list(self.bodies.ids)
+        # The humanoids stand on their own box ground (full contact manifolds, see PhysicsHumanoids);
+        # the scene's plane and the robots ignore that box, the humanoids ignore the plane.
+        if env.bodies.ground_id is not None:
+            self.bodies.exclude_collisions(env.bodies.ground_id)
+        for r in env.robots.ids:
+            for link in range(-1, p.getNumJoints(r, physicsClientId=self.client)):
+                p.setCollisionFilterPair(r, self.bodies.ground_id, link, -1, 0, physicsClientId=self.client)
+        self.horizon = env.config.amp_replan_seconds + N_WAYPOINTS * WAYPOINT_DT + 0.5
+        self.path_len = int(round(self.horizon * CONTROL_HZ)) + 1
+        self.stride = int(round(WAYPOINT_DT * CONTROL_HZ))
+        self.paths = np.zeros((self.n, self.path_len, 2))
+        self.t = 0  # control steps since reset
+        self.plan_t = np.zeros(self.n, dtype=int)  # control step of each person's last plan
+        self.fallen = np.zeros(self.n, dtype=bool)
+        self.sfm = SocialForceParams()
+        model = env.config.crowd_model
+        self.orca = OrcaParams(right_bias=0.0, one_step_safety=False) if model == "orca_rvo2" else OrcaParams()
+        self._index = {b: j for j, b in enumerate(self.ids)}
+
+    # ------------------------------------------------------------------ reset / state
+    def reset(self, pos: np.ndarray, yaw: np.ndarray) -> None:
+        if self.n == 0:
+            return
+        self.bodies.set_state(self.bodies.standing_state(pos, yaw))
+        self.t = 0
+        self.fallen[:] = False
+        self.plan_all()
+
+    def state(self) -> dict[str, np.ndarray]:
+        return self.bodies.read_state()
+
+    def planar(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Root position (H, 2), heading (H,), planar velocity (H, 2) and yaw rate (H,)."""
+        s = self.state()
+        return s["root_pos"][:, :2].copy(), heading(s["root_quat"]), s["root_lin_vel"][:, :2].copy(), \
+            s["root_ang_vel"][:, 2].copy()
+
+    # ------------------------------------------------------------------ targets
+    def target_now(self) -> np.ndarray:
+        """(H, 2) the current point of every target trajectory."""
+        k = np.minimum(self.t - self.plan_t, self.path_len - 1)
+        return self.paths[np.arange(self.n), k]
+
+    def waypoints(self) -> np.ndarray:
+        """(H, K, 2) the next K target points, ``WAYPOINT_DT`` apart."""
+        k = (self.t - self.plan_t)[:, None] + self.stride * np.arange(1, N_WAYPOINTS + 1)[None, :]
+        return np.take_along_axis(self.paths, np.minimum(k, self.path_len - 1)[..., None], axis=1)
+
+    def plan_all(self) -> None:
+        """Roll the crowd model out from the bodies' actual states: new target trajectories for all."""
+        env = self.env
+        R, N = env.n_robots, env.n_total
+        h = np.arange(R, N)
+        pos, _, vel, _ = self.planar()
+        goal = env.goal[h].copy()
+        v_pref = np.where(env.arrived[h] | self.fallen, 0.0, env.v_pref[h])
+        wp_index = env.wp_index[h].copy()
+        paths = [env.paths[i] for i in h]
+        rad = env.radius[h]
+        vmax = np.full(self.n, env.config.human_max_speed)
+        robots = np.flatnonzero(env.alive[:R]) if env.config.humans_see_robots else np.zeros(0, dtype=int)
+        r_pos, r_vel, r_rad = env.pos[robots], env.vel[robots], env.radius[robots]
+        tol = env.config.waypoint_tolerance
+        steps = int(np.ceil(self.horizon / PLAN_DT))
+        out = np.empty((self.n, steps + 1, 2))
+        out[:, 0] = pos
+        for k in range(steps):
+            for j in range(self.n):  # advance along the A* path, as the env does for the crowd
+                path = paths[j]
+                while wp_index[j] < len(path) - 1 and np.linalg.norm(path[wp_index[j]] - pos[j]) < tol:
+                    wp_index[j] += 1
+            wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in range(self.n)])
+            pref = preferred_velocity(pos, wp, goal, v_pref)
+            o_pos = r_pos + (k * PLAN_DT) * r_vel
+            if env.config.crowd_model == "sfm":
+                vel = social_force_velocities(pos, vel, pref, rad, vmax, PLAN_DT, self.sfm, env.segments,
+                                              others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
+                                              segment_groups=env.segment_groups)
+            else:
+                vel = orca_velocities(np.concatenate([pos, o_pos]), np.concatenate([vel, r_vel]),
+                                      np.concatenate([pref, r_vel]), np.concatenate([rad, r_rad]),
+                                      np.concatenate([vmax, np.full(robots.size, env.config.robot.max_speed)]),
+                                      PLAN_DT, self.orca, env.segments, n_active=self.n)
+            pos = pos + PLAN_DT * vel
+            out[:, k + 1] = pos
+        self.paths = resample(out, PLAN_DT, 1.0 / CONTROL_HZ, self.path_len)
+        self.plan_t[:] = self.t
+
+    # ------------------------------------------------------------------ observation / action / step
+    def observations(self) -> np.ndarray:
+        """(H, OBS_DIM) float32: the AMP controller's input of every pedestrian."""
+        s = self.state()
+        task = task_observation(s["root_pos"], s["root_quat"], self.waypoints())
+        return np.concatenate([self_observation(s), task], axis=1).astype(np.float32)
+
+    def set_actions(self, actions: np.ndarray) -> None:
+        sph, rev = actions_to_targets(np.clip(np.asarray(actions, dtype=np.float64), -1.0, 1.0))
+        self.bodies.apply_targets(sph, rev)
+
+    def control_step(self, before_substep) -> None:
+        """One 30 Hz control step (4 physics steps); ``before_substep`` drives the robots."""
+        self.bodies.step(before_substep)
+        self.t += 1
+
+    def after_step(self, replan: bool) -> None:
+        """Falls are sticky; replan when due (or when asked, e.g. after new goals)."""
+        self.fallen |= self.bodies.fallen()
+        if replan or self.t - int(self.plan_t.min()) >= self.replan_steps:
+            self.plan_all()
+
+    def task_reward(self) -> dict[str, np.ndarray]:
+        """The controller's task reward terms (the paper's r_tau, r_e, r_d with its alpha values)."""
+        s = self.state()
+        err2 = np.sum((s["root_pos"][:, :2] - self.target_now()) ** 2, axis=1)
+        h = heading(s["root_quat"])
+        u = np.cos(h) * s["root_lin_vel"][:, 0] + np.sin(h) * s["root_lin_vel"][:, 1]
+        return {
+            "track": np.exp(-2.0 * err2),
+            "energy": -0.0005 * self.bodies.joint_power(),
+            "direction": np.exp(np.minimum(0.0, u) / 1.8) - 1.0,
+            "path_error": np.sqrt(err2),
+        }
+
+    def contacts(self) -> tuple[np.ndarray, np.ndarray]:
+        """(H,) bools: touching a scene obstacle; touching another pedestrian or a robot (last physics step)."""
+        env = self.env
+        map_hit = np.zeros(self.n, dtype=bool)
+        agent_hit = np.zeros(self.n, dtype=bool)
+        for j, body in enumerate(self.ids):
+            for c in p.getContactPoints(bodyA=body, physicsClientId=self.client):
+                kind = env._body_kind.get(c[2])
+                if kind == "obstacle":
+                    map_hit[j] = True
+                elif kind in ("human", "robot") and c[2] != body:
+                    agent_hit[j] = True
+        return map_hit, agent_hit
