@@ -1,0 +1,468 @@
+"""Closed-loop tracking of reference clips by the trained AMP pedestrian policy (the paper's protocol).
+
+"We use the learned AMP policy to track the reference motions in a closed-loop manner. During
+rollout, the simulated rigid-body states are synchronized with the reference sequence and compared
+frame by frame." Here, for every clip:
+
+1. one physics humanoid (:class:`~navzoo.agents.amp.sim.PhysicsHumanoids`, the training settings of
+   :class:`~navzoo.agents.amp.path_env.PathTaskConfig`: ``pd_mode="motor"``, 120 Hz physics, 30 Hz
+   control, box ground) is put in the clip's first frame, velocities included (reference state
+   initialisation). All humanoids of a batch share one PyBullet client, 40 m apart; each clip's
+   reference is translated so that it starts at its humanoid's origin, and sim and reference are
+   compared in that shifted frame;
+2. the policy's target path is the clip's own root trajectory on the ground, sampled at the control
+   rate (the observation holds the next 10 points 0.5 s apart, as in training; the last point of the
+   clip is held after it ends);
+3. the deterministic policy runs for the clip's duration (optionally capped by ``max_seconds``); after
+   every control step the 15 rigid bodies of the simulated humanoid are compared with the reference at
+   the same time: the *position error* is the mean over the 15 bodies of the distance between link
+   frame origins, the *rotation error* the mean over the bodies of the geodesic angle
+   ``2 arccos |<q_sim, q_ref>|`` between link orientations. Both sides go through the same forward
+   kinematics (:func:`navzoo.agents.motion_lib.humanoid_fk`, fed with the simulator's base pose and
+   joint values or with the reference's), so the link definitions match exactly; at t = 0 both errors
+   are zero up to round-off;
+4. a clip *fails* at the first control step whose (per-step, mean over bodies) position error exceeds
+   0.5 m. By default (``stop_on_failure=True``) its rollout ends there, that step included, as in
+   termination-based tracking evaluations; ``stop_on_failure=False`` tracks every clip to its end.
+   Falls (:meth:`PhysicsHumanoids.fallen`: a non-foot link touching the ground or the root sinking
+   below half its standing height) are recorded, but do not end a rollout.
+
+Metrics, per clip: the mean and the maximum over steps of the per-step position error, the mean
+rotation error, ``failed`` and ``fell`` (with their first times). Summary:
+
+- ``mean_pos_error_m``: mean over clips of the per-clip mean position error;
+- ``max_pos_error_m``: mean over clips of the per-clip *maximum* position error. This is the reading
+  of the paper's "maximum rigid-body position error 0.433 m" that fits its own numbers: with 35.4 % of
+  the clips failing (a per-step error above 0.5 m), the single largest error over all clips is above
+  0.5 m, so 0.433 m can only be an average of per-clip maxima (with rollouts ended at the failure, a
+  failed clip's maximum is the first error above 0.5 m). The largest error over everything is
+  ``worst_pos_error_m``;
+- ``mean_rot_error_rad``: mean over clips of the per-clip mean rotation error;
+- ``clip_success_rate`` (share of clips that never fail), ``fall_rate`` (share that fell while tracked),
+  ``n_clips``, ``seconds_simulated`` (tracked seconds summed over clips), ``seconds_reference``
+  (requested clip seconds, after the cap), ``wall_s``, the same three error means over the successful
+  clips only (``success_*``), the settings, and ``per_clip``.
+
+Humanoids sharing a client are far apart but not bit-for-bit independent (PyBullet solves the whole
+world in one pass): one clip's errors move by a few millimetres with the batch it runs in (measured on
+the 78 locomotion clips: batches of 64 vs one client per clip, ``batch_size=1``: summary means within
+2 mm / 3 mrad, the same clips failing). Finished clips keep being simulated until their batch ends.
+
+Paper (Table in the AMP pedestrian section): 0.218 m / 0.343 rad / max 0.433 m / 64.6 % of the
+evaluated locomotion clips tracked. The policy is not conditioned on the clip's pose, only on its root
+path, so errors of a couple of decimetres are inherent to the protocol.
+
+CLI: ``python -m navzoo.agents.amp.tracking [POLICY_DIR] [--motions DIR] [--clips A,B,...]
+[--max-seconds S] [--json] [--per-clip]``; the default policy is the shipped
+``policies/amp_pedestrian``, the default clips the packaged library's navigation locomotion (the
+training set, :func:`navzoo.agents.amp.train.locomotion_reference`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from navzoo import sim as nzsim
+from navzoo.agents.amp.checkpoint import POLICY_CONFIG, load_policy
+from navzoo.agents.amp.features import self_observation, task_observation
+from navzoo.agents.amp.path_env import PathTaskConfig
+from navzoo.agents.amp.sim import PhysicsHumanoids, actions_to_targets
+from navzoo.agents.motion_lib import DEFAULT_NAME, MotionLibrary, humanoid_fk
+from navzoo.agents.quat import quat_angle, quat_conj, quat_mul, quat_normalize
+from navzoo.agents.reference import ReferenceState
+
+#: A clip fails once the per-step mean rigid-body position error exceeds this (m).
+FAIL_THRESHOLD_M = 0.5
+#: Humanoids per PyBullet client (larger selections run in several batches, one after the other).
+DEFAULT_BATCH = 64
+#: The shipped policy (repository checkout).
+DEFAULT_POLICY_DIR = Path(__file__).resolve().parents[3] / "policies" / "amp_pedestrian"
+N_BODIES = 15
+
+StateLike = ReferenceState | dict[str, np.ndarray]
+
+
+# --------------------------------------------------------------------------------------------------
+# Errors between a simulated state and a reference state
+# --------------------------------------------------------------------------------------------------
+
+
+def _pose(x: StateLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(root_pos (B, 3), root_quat (B, 4), sph (B, 8, 4), rev (B, 4)) of a batched state or state dict."""
+    if isinstance(x, ReferenceState):
+        parts = (x.root_pos, x.root_quat, x.sph, x.rev)
+    else:
+        parts = (x["root_pos"], x["root_quat"], x["sph"], x["rev"])
+    root_pos = np.atleast_2d(np.asarray(parts[0], dtype=np.float64))
+    b = root_pos.shape[0]
+    return (
+        root_pos.reshape(b, 3),
+        np.asarray(parts[1], dtype=np.float64).reshape(b, 4),
+        np.asarray(parts[2], dtype=np.float64).reshape(b, 8, 4),
+        np.asarray(parts[3], dtype=np.float64).reshape(b, 4),
+    )
+
+
+def rigid_bodies(state: StateLike) -> tuple[np.ndarray, np.ndarray]:
+    """World frames of the 15 rigid bodies: ``(pos (B, 15, 3), quat (B, 15, 4))`` (unit quaternions).
+
+    ``state`` is a batched :class:`ReferenceState` or a :meth:`PhysicsHumanoids.read_state` dict; both
+    go through :func:`navzoo.agents.motion_lib.humanoid_fk` (link frame origins and orientations)."""
+    root_pos, root_quat, sph, rev = _pose(state)
+    pos, quat = humanoid_fk(root_pos, quat_normalize(root_quat), quat_normalize(sph), rev)
+    return pos, quat_normalize(quat)
+
+
+def body_errors(
+    pos_a: np.ndarray, quat_a: np.ndarray, pos_b: np.ndarray, quat_b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mean over bodies of the position error (m) and geodesic rotation error (rad) of link frames
+    (..., 15, 3) / (..., 15, 4): two arrays of shape (...)."""
+    pos_err = np.linalg.norm(np.asarray(pos_a) - np.asarray(pos_b), axis=-1).mean(axis=-1)
+    # 2 arccos |<q_a, q_b>|, computed as the angle of q_a^-1 q_b (accurate near zero).
+    rot_err = quat_angle(quat_mul(quat_conj(np.asarray(quat_a)), np.asarray(quat_b))).mean(axis=-1)
+    return pos_err, rot_err
+
+
+def rigid_body_errors(state: StateLike, reference: StateLike) -> tuple[np.ndarray, np.ndarray]:
+    """Per humanoid (B,): mean over the 15 rigid bodies of the link position error (m) and of the
+    geodesic link rotation error ``2 arccos |<q1, q2>|`` (rad) between ``state`` and ``reference``
+    (each a batched :class:`ReferenceState` or a ``read_state()`` dict)."""
+    pa, qa = rigid_bodies(state)
+    pb, qb = rigid_bodies(reference)
+    if pa.shape != pb.shape:
+        raise ValueError(f"state and reference batch sizes differ: {pa.shape[0]} vs {pb.shape[0]}")
+    return body_errors(pa, qa, pb, qb)
+
+
+# --------------------------------------------------------------------------------------------------
+# Inputs
+# --------------------------------------------------------------------------------------------------
+
+
+def load_motions(motions: str | Path | MotionLibrary | None) -> MotionLibrary:
+    """The clips to track: a :class:`MotionLibrary` as is, a library folder (or its ``.json``) loaded
+    whole, or (None) the packaged library's navigation locomotion, as in training."""
+    if motions is None:
+        from navzoo.agents.amp.train import locomotion_reference
+
+        return locomotion_reference()
+    if isinstance(motions, MotionLibrary):
+        if len(motions) == 0:
+            raise ValueError("the motion library holds no clips")
+        return motions
+    path = Path(motions)
+    if not path.exists():
+        raise FileNotFoundError(f"motion folder not found: {path}")
+    if path.is_dir() and not (path / f"{DEFAULT_NAME}.json").is_file():
+        raise FileNotFoundError(
+            f"no motion library in {path}: expected {DEFAULT_NAME}.json and {DEFAULT_NAME}.npz "
+            "(build one with `navzoo motions convert`)"
+        )
+    lib = MotionLibrary.load(path)
+    if len(lib) == 0:
+        raise ValueError(f"the motion library in {path} holds no clips")
+    return lib
+
+
+def _clip_indices(lib: MotionLibrary, clips: Sequence[int | str] | int | str | None) -> list[int]:
+    if clips is None:
+        return list(range(len(lib)))
+    if isinstance(clips, (int, str, np.integer)):
+        clips = [clips]
+    out = []
+    for c in clips:
+        if isinstance(c, str):
+            if c not in lib.clip_names():
+                raise ValueError(f"no clip named {c!r} in the motion library ({len(lib)} clips)")
+            out.append(lib.clip_index(c))
+        elif isinstance(c, (int, np.integer)) and not isinstance(c, bool):
+            if not 0 <= int(c) < len(lib):
+                raise ValueError(f"clip index {c} out of range [0, {len(lib)})")
+            out.append(int(c))
+        else:
+            raise TypeError(f"clips must be indices or names, got {c!r}")
+    if not out:
+        raise ValueError("no clips selected")
+    return out
+
+
+def _load_policy_dir(policy_dir: str | Path, device: str = "cpu") -> Any:
+    root = Path(policy_dir)
+    if not root.exists():
+        raise FileNotFoundError(f"policy directory not found: {root}")
+    if root.is_dir() and not (root / POLICY_CONFIG).is_file():
+        raise FileNotFoundError(
+            f"{root} is not an exported AMP policy: no {POLICY_CONFIG} (export one with "
+            "AmpLearner.export_policy or navzoo.agents.amp.train.export_from_checkpoint)"
+        )
+    return load_policy(root, device=device)
+
+
+# --------------------------------------------------------------------------------------------------
+# Tracking
+# --------------------------------------------------------------------------------------------------
+
+
+def _shift(ref: ReferenceState, d: np.ndarray) -> ReferenceState:
+    """Translate batched reference states by ``d`` (..., 3)."""
+    return ReferenceState(np.asarray(ref.root_pos) + d, ref.root_quat, ref.sph, ref.rev, ref.root_lin_vel,
+                          ref.root_ang_vel, ref.sph_vel, ref.rev_vel)
+
+
+def _track_batch(
+    policy: Any,
+    lib: MotionLibrary,
+    idx: list[int],
+    max_seconds: float | None,
+    cfg: PathTaskConfig,
+    fail_threshold: float,
+    stop_on_failure: bool,
+) -> list[dict[str, Any]]:
+    """Track clips ``idx`` with one humanoid each in one PyBullet client."""
+    n = len(idx)
+    hz = cfg.control_hz
+    dt = 1.0 / hz
+    clip = np.asarray(idx, dtype=np.int64)
+    full = np.array([lib.duration(c) for c in idx])
+    dur = full if max_seconds is None else np.minimum(full, float(max_seconds))
+    n_steps = np.maximum(1, np.floor(dur * hz + 1e-6).astype(int))
+    max_steps = int(n_steps.max())
+    stride = int(round(cfg.waypoint_dt * hz))
+    path_len = max_steps + stride * cfg.n_waypoints + 1
+
+    # Origins on a grid centred on the world origin (the box ground is 1 km wide).
+    cols = int(np.ceil(np.sqrt(n)))
+    k = np.arange(n)
+    origins = np.stack([(k % cols) * cfg.spacing, (k // cols) * cfg.spacing], axis=1).astype(float)
+    origins -= origins.mean(axis=0)
+
+    # Reference at every control step (times clamped to each clip's real end: the path holds the last
+    # point after it; a capped clip's path goes on as the clip does), shifted to the origins.
+    times = np.minimum(np.arange(path_len)[None, :] * dt, full[:, None])  # (n, L)
+    ref = lib.state_at(np.repeat(clip, path_len), times.reshape(-1))
+    first = np.asarray(ref.root_pos).reshape(n, path_len, 3)[:, 0]
+    shift = np.concatenate([origins - first[:, :2], np.zeros((n, 1))], axis=1)
+    ref = _shift(ref, np.repeat(shift, path_len, axis=0))
+    paths = np.asarray(ref.root_pos).reshape(n, path_len, 3)[..., :2]
+    ref_pos, ref_quat = rigid_bodies(ref)
+    ref_pos = ref_pos.reshape(n, path_len, N_BODIES, 3)
+    ref_quat = ref_quat.reshape(n, path_len, N_BODIES, 4)
+    start = _shift(lib.state_at(clip, np.zeros(n)), shift)  # first frames, velocities included
+
+    pos_err = np.full((n, max_steps), np.nan)
+    rot_err = np.full((n, max_steps), np.nan)
+    fail_step = np.full(n, -1)
+    fall_step = np.full(n, -1)
+    tracked = np.zeros(n, dtype=int)
+    wp_offsets = stride * np.arange(1, cfg.n_waypoints + 1)
+
+    client = nzsim.connect()
+    try:
+        bodies = PhysicsHumanoids(client, n, physics_hz=cfg.physics_hz, control_hz=hz, pd_mode=cfg.pd_mode)
+        bodies.set_state(start)
+        state = bodies.read_state()
+        for step in range(1, max_steps + 1):
+            t = step - 1  # the observation at time t looks at the path points t + stride * j
+            wp = paths[:, np.minimum(t + wp_offsets, path_len - 1)]
+            obs = np.concatenate(
+                [self_observation(state), task_observation(state["root_pos"], state["root_quat"], wp)], axis=1
+            ).astype(np.float32)
+            sph, rev = actions_to_targets(np.clip(np.asarray(policy(obs), dtype=np.float64), -1.0, 1.0))
+            bodies.apply_targets(sph, rev)
+            bodies.step()
+            state = bodies.read_state()
+            active = (step <= n_steps) & (fail_step < 0 if stop_on_failure else True)
+            sim_pos, sim_quat = rigid_bodies(state)
+            pe, re = body_errors(sim_pos, sim_quat, ref_pos[:, step], ref_quat[:, step])
+            pos_err[active, step - 1] = pe[active]
+            rot_err[active, step - 1] = re[active]
+            tracked[active] = step
+            fallen = bodies.fallen()
+            fall_step[active & fallen & (fall_step < 0)] = step
+            fail_step[active & (pe > fail_threshold) & (fail_step < 0)] = step
+            still = (step + 1 <= n_steps) & ((fail_step < 0) if stop_on_failure else True)
+            if not still.any():
+                break
+    finally:
+        nzsim.disconnect(client)
+
+    out = []
+    for i, c in enumerate(idx):
+        pe = pos_err[i, : tracked[i]]
+        re = rot_err[i, : tracked[i]]
+        out.append({
+            "name": lib.clip_names()[c],
+            "index": int(c),
+            "duration_s": float(dur[i]),
+            "clip_duration_s": float(full[i]),
+            "tracked_s": float(tracked[i] * dt),
+            "mean_pos_error_m": float(np.mean(pe)),
+            "max_pos_error_m": float(np.max(pe)),
+            "mean_rot_error_rad": float(np.mean(re)),
+            "max_rot_error_rad": float(np.max(re)),
+            "failed": bool(fail_step[i] > 0),
+            "fail_time_s": float(fail_step[i] * dt) if fail_step[i] > 0 else None,
+            "fell": bool(fall_step[i] > 0),
+            "fall_time_s": float(fall_step[i] * dt) if fall_step[i] > 0 else None,
+        })
+    return out
+
+
+def track_clips(
+    policy_dir: str | Path = DEFAULT_POLICY_DIR,
+    motions: str | Path | MotionLibrary | None = None,
+    clips: Sequence[int | str] | int | str | None = None,
+    max_seconds: float | None = None,
+    seed: int = 0,
+    *,
+    config: PathTaskConfig | None = None,
+    fail_threshold: float = FAIL_THRESHOLD_M,
+    stop_on_failure: bool = True,
+    batch_size: int = DEFAULT_BATCH,
+    device: str = "cpu",
+) -> dict[str, Any]:
+    """Track reference clips with the deterministic AMP policy in closed loop (see the module doc).
+
+    Args:
+        policy_dir: an exported policy (``config.json`` + ``policy.pt``).
+        motions: a :class:`MotionLibrary`, a library folder, or None: the packaged library's
+            navigation locomotion (the training clips).
+        clips: indices or names of the clips to track (default: all of ``motions``).
+        max_seconds: track at most this long per clip (None: each clip's full duration).
+        seed: seeds numpy and torch (the policy is deterministic and the physics has no noise; kept
+            so that runs are reproducible if either ever draws random numbers).
+        config: simulation settings (default: :class:`PathTaskConfig`'s, the training ones); only the
+            physics/control rates, ``pd_mode``, ``spacing`` and the observation's waypoints are used.
+        fail_threshold: per-step mean position error (m) above which a clip fails.
+        stop_on_failure: end a clip's rollout at its failure (that step counts in its metrics).
+        batch_size: humanoids per PyBullet client.
+        device: torch device of the policy.
+
+    Returns:
+        The summary dict (keys in the module doc), with ``per_clip`` a list of per-clip dicts.
+
+    Raises:
+        FileNotFoundError: missing policy directory or motion folder / library files.
+        ValueError: empty or unknown clip selection, non-positive ``max_seconds`` or ``batch_size``.
+    """
+    if max_seconds is not None and not (np.isfinite(max_seconds) and max_seconds > 0):
+        raise ValueError(f"max_seconds must be positive, got {max_seconds!r}")
+    if int(batch_size) < 1:
+        raise ValueError(f"batch_size must be >= 1, got {batch_size!r}")
+    if not fail_threshold > 0:
+        raise ValueError(f"fail_threshold must be positive, got {fail_threshold!r}")
+    cfg = config or PathTaskConfig()
+    policy = _load_policy_dir(policy_dir, device)
+    obs_dim = 105 + 2 * cfg.n_waypoints
+    if getattr(policy, "obs_dim", obs_dim) != obs_dim:
+        raise ValueError(
+            f"policy {policy_dir} expects {policy.obs_dim} observations, this task gives {obs_dim} "
+            f"(n_waypoints={cfg.n_waypoints})"
+        )
+    lib = load_motions(motions)
+    idx = _clip_indices(lib, clips)
+    np.random.seed(seed)
+    import torch
+
+    torch.manual_seed(seed)
+
+    t0 = time.perf_counter()
+    per_clip: list[dict[str, Any]] = []
+    for b in range(0, len(idx), int(batch_size)):
+        per_clip += _track_batch(policy, lib, idx[b : b + int(batch_size)], max_seconds, cfg, float(fail_threshold),
+                                 bool(stop_on_failure))
+    wall = time.perf_counter() - t0
+
+    def mean(key: str, rows: list[dict[str, Any]]) -> float | None:
+        return float(np.mean([r[key] for r in rows])) if rows else None
+
+    ok = [r for r in per_clip if not r["failed"]]
+    return {
+        "mean_pos_error_m": mean("mean_pos_error_m", per_clip),
+        "max_pos_error_m": mean("max_pos_error_m", per_clip),
+        "worst_pos_error_m": float(max(r["max_pos_error_m"] for r in per_clip)),
+        "mean_rot_error_rad": mean("mean_rot_error_rad", per_clip),
+        "clip_success_rate": len(ok) / len(per_clip),
+        "fall_rate": float(np.mean([r["fell"] for r in per_clip])),
+        "n_clips": len(per_clip),
+        "n_failed": len(per_clip) - len(ok),
+        "n_fell": int(sum(r["fell"] for r in per_clip)),
+        "success_mean_pos_error_m": mean("mean_pos_error_m", ok),
+        "success_max_pos_error_m": mean("max_pos_error_m", ok),
+        "success_mean_rot_error_rad": mean("mean_rot_error_rad", ok),
+        "seconds_simulated": float(sum(r["tracked_s"] for r in per_clip)),
+        "seconds_reference": float(sum(r["duration_s"] for r in per_clip)),
+        "wall_s": wall,
+        "max_seconds": None if max_seconds is None else float(max_seconds),
+        "fail_threshold_m": float(fail_threshold),
+        "stop_on_failure": bool(stop_on_failure),
+        "pd_mode": cfg.pd_mode,
+        "policy_dir": str(policy_dir),
+        "per_clip": per_clip,
+    }
+
+
+# --------------------------------------------------------------------------------------------------
+# CLI
+# --------------------------------------------------------------------------------------------------
+
+
+def _parse_clips(text: str | None) -> list[int | str] | None:
+    if text is None:
+        return None
+    out: list[int | str] = []
+    for part in text.split(","):
+        part = part.strip()
+        if part:
+            out.append(int(part) if part.lstrip("-").isdigit() else part)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("policy_dir", nargs="?", default=str(DEFAULT_POLICY_DIR),
+                        help="exported policy directory (default: the shipped policies/amp_pedestrian)")
+    parser.add_argument("--motions", default=None,
+                        help="motion library folder (default: the packaged library's locomotion clips)")
+    parser.add_argument("--clips", default=None, help="comma-separated clip names or indices (default: all)")
+    parser.add_argument("--max-seconds", type=float, default=None, help="track at most this long per clip")
+    parser.add_argument("--fail-threshold", type=float, default=FAIL_THRESHOLD_M)
+    parser.add_argument("--no-stop-on-failure", action="store_true",
+                        help="track failed clips to their end (default: a clip's rollout ends at its failure)")
+    parser.add_argument("--batch-size", type=int, default=DEFAULT_BATCH)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", action="store_true", help="print the summary as JSON")
+    parser.add_argument("--per-clip", action="store_true", help="include the per-clip results")
+    args = parser.parse_args(argv)
+    try:
+        result = track_clips(args.policy_dir, args.motions, _parse_clips(args.clips), args.max_seconds, args.seed,
+                             fail_threshold=args.fail_threshold, stop_on_failure=not args.no_stop_on_failure,
+                             batch_size=args.batch_size)
+    except (FileNotFoundError, ValueError, TypeError) as e:
+        parser.exit(2, f"error: {e}\n")
+    if not args.per_clip:
+        result.pop("per_clip")
+    if args.json:
+        print(json.dumps(result))
+    else:
+        rows = result.pop("per_clip", None)
+        for key, value in result.items():
+            print(f"{key:28s} {value:.4f}" if isinstance(value, float) else f"{key:28s} {value}")
+        for r in rows or ():
+            status = "FAIL" if r["failed"] else "ok"
+            print(f"  {r['name']:28s} {r['tracked_s']:5.2f}/{r['duration_s']:5.2f} s  pos {r['mean_pos_error_m']:.3f} "
+                  f"max {r['max_pos_error_m']:.3f} m  rot {r['mean_rot_error_rad']:.3f} rad  {status}"
+                  f"{'  fell' if r['fell'] else ''}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,123 @@
+"""Closed-loop clip tracking by the AMP pedestrian policy (navzoo.agents.amp.tracking)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from navzoo import sim as nzsim
+from navzoo.agents.amp.sim import PhysicsHumanoids
+from navzoo.agents.amp.tracking import DEFAULT_POLICY_DIR, main, rigid_body_errors, track_clips
+from navzoo.agents.amp.train import locomotion_reference
+from navzoo.agents.quat import quat_about_z, quat_mul
+from navzoo.agents.reference import ReferenceState
+
+CLIPS = ["amp_walk", "cmu_07_12", "cmu_16_27"]
+
+
+@pytest.fixture(scope="module")
+def library():
+    return locomotion_reference()
+
+
+@pytest.fixture(scope="module")
+def short_run(library):
+    return track_clips(DEFAULT_POLICY_DIR, library, CLIPS, max_seconds=1.0)
+
+
+def _replace(ref: ReferenceState, **kw) -> ReferenceState:
+    fields = dict(ref.__dict__)
+    fields.update(kw)
+    return ReferenceState(**fields)
+
+
+def test_error_of_a_reference_against_itself_and_moved_copies(library):
+    ref = library.state_at(np.array([0, 5, 20]), np.array([0.0, 1.0, 2.5]))
+    pos, rot = rigid_body_errors(ref, ref)
+    assert pos.shape == rot.shape == (3,)
+    np.testing.assert_allclose(pos, 0.0, atol=1e-12)
+    np.testing.assert_allclose(rot, 0.0, atol=1e-7)
+    # Translated by 1 m: every body is 1 m off, no body is turned.
+    moved = _replace(ref, root_pos=np.asarray(ref.root_pos) + np.array([0.6, -0.8, 0.0]))
+    pos, rot = rigid_body_errors(moved, ref)
+    np.testing.assert_allclose(pos, 1.0, atol=1e-9)
+    np.testing.assert_allclose(rot, 0.0, atol=1e-7)
+    # The base turned by 0.3 rad about the vertical: every body is turned by exactly 0.3 rad.
+    turned = _replace(ref, root_quat=quat_mul(quat_about_z(np.full(3, 0.3)), np.asarray(ref.root_quat)))
+    pos, rot = rigid_body_errors(turned, ref)
+    np.testing.assert_allclose(rot, 0.3, atol=1e-9)
+    assert (pos > 0.01).all()
+    # Quaternion signs do not matter (q and -q are the same rotation).
+    flipped = _replace(ref, root_quat=-np.asarray(ref.root_quat), sph=-np.asarray(ref.sph))
+    np.testing.assert_allclose(rigid_body_errors(flipped, ref)[1], 0.0, atol=1e-7)
+    with pytest.raises(ValueError, match="batch"):
+        rigid_body_errors(library.state_at(np.array([0]), np.array([0.0])), ref)
+
+
+def test_reference_state_initialisation_puts_the_body_exactly_on_the_reference(library):
+    ref = library.state_at(np.array([0, 14]), np.array([0.0, 0.7]))
+    ref = _replace(ref, root_pos=np.asarray(ref.root_pos) + np.array([[0.0, 0.0, 0.0], [40.0, 0.0, 0.0]]))
+    cid = nzsim.connect()
+    try:
+        bodies = PhysicsHumanoids(cid, 2, pd_mode="motor")
+        bodies.set_state(ref)
+        pos, rot = rigid_body_errors(bodies.read_state(), ref)
+    finally:
+        nzsim.disconnect(cid)
+    assert pos.max() < 1e-6 and rot.max() < 1e-5
+
+
+def test_short_tracking_run(short_run):
+    r = short_run
+    for key in ("mean_pos_error_m", "max_pos_error_m", "worst_pos_error_m", "mean_rot_error_rad",
+                "clip_success_rate", "fall_rate", "n_clips", "seconds_simulated", "per_clip"):
+        assert key in r
+    assert r["n_clips"] == 3 and [c["name"] for c in r["per_clip"]] == CLIPS
+    for key in ("mean_pos_error_m", "max_pos_error_m", "worst_pos_error_m", "mean_rot_error_rad"):
+        assert math.isfinite(r[key]) and r[key] >= 0.0
+    assert 0.0 <= r["clip_success_rate"] <= 1.0 and 0.0 <= r["fall_rate"] <= 1.0
+    assert r["mean_pos_error_m"] <= r["max_pos_error_m"] <= r["worst_pos_error_m"]
+    assert 0.0 < r["seconds_simulated"] <= 3.0 + 1e-9
+    for c in r["per_clip"]:
+        assert c["duration_s"] == pytest.approx(1.0) and c["clip_duration_s"] > 1.0
+        assert 0.0 < c["tracked_s"] <= 1.0 + 1e-9
+        assert c["mean_pos_error_m"] <= c["max_pos_error_m"]
+        assert c["failed"] == (c["max_pos_error_m"] > 0.5)
+        if not c["failed"]:
+            assert c["tracked_s"] == pytest.approx(1.0)
+    # The closed loop works: one second of walking from the reference state stays near the clip.
+    assert r["mean_pos_error_m"] < 0.4
+    json.dumps(r)  # JSON-serialisable
+
+
+def test_cli_prints_json(capsys):
+    assert main([str(DEFAULT_POLICY_DIR), "--clips", "0", "--max-seconds", "0.3", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["n_clips"] == 1 and "per_clip" not in out
+
+
+def test_bad_inputs(tmp_path, library):
+    with pytest.raises(FileNotFoundError, match="policy directory not found"):
+        track_clips(tmp_path / "nope", library, [0], max_seconds=0.1)
+    with pytest.raises(FileNotFoundError, match="config.json"):
+        track_clips(tmp_path, library, [0], max_seconds=0.1)
+    empty = tmp_path / "motions"
+    empty.mkdir()
+    with pytest.raises(FileNotFoundError, match="no motion library"):
+        track_clips(DEFAULT_POLICY_DIR, empty, max_seconds=0.1)
+    with pytest.raises(FileNotFoundError, match="motion folder not found"):
+        track_clips(DEFAULT_POLICY_DIR, tmp_path / "missing", max_seconds=0.1)
+    with pytest.raises(ValueError, match="no clip named"):
+        track_clips(DEFAULT_POLICY_DIR, library, ["no_such_clip"], max_seconds=0.1)
+    with pytest.raises(ValueError, match="out of range"):
+        track_clips(DEFAULT_POLICY_DIR, library, [len(library)], max_seconds=0.1)
+    with pytest.raises(ValueError, match="no clips"):
+        track_clips(DEFAULT_POLICY_DIR, library, [], max_seconds=0.1)
+    with pytest.raises(ValueError, match="max_seconds"):
+        track_clips(DEFAULT_POLICY_DIR, library, [0], max_seconds=0.0)
+    with pytest.raises(SystemExit) as e:
+        main([str(tmp_path / "nope")])
+    assert e.value.code == 2
