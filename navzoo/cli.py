@@ -54,6 +54,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_amp_arguments(tsub.add_parser("amp", help="the AMP pedestrian controller (resumable; see docs/amp_training.md)"))
 
+    ev = sub.add_parser("eval", help="evaluate a component of navzoo")
+    esub = ev.add_subparsers(dest="eval_command", metavar="WHAT")
+    from navzoo.benchmark.pedestrians import add_arguments as add_ped_arguments
+
+    add_ped_arguments(esub.add_parser(
+        "pedestrians", help="AMP pedestrians: clip tracking, trajectory following, motion realism, throughput"))
+
     speed = sub.add_parser("speed", help="env throughput with kinematic crowds and its overhead over PyBullet")
     speed.add_argument("--humans", type=_int_list, default=[5, 20, 64], help="crowd sizes (default 5,20,64)")
     speed.add_argument("--steps", type=int, default=200)
@@ -81,6 +88,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _motions(args, parser)
         if args.command == "train":
             return _train(args, parser)
+        if args.command == "eval":
+            if args.eval_command == "pedestrians":
+                from navzoo.benchmark.pedestrians import run_cli
+
+                return run_cli(args)
+            parser.parse_args(["eval", "--help"])
+            return 2
     except (ValueError, TypeError, FileNotFoundError, OSError) as exc:
         print(f"navzoo {args.command}: error: {exc}", file=sys.stderr)
         return 2

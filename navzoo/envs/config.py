@@ -24,7 +24,8 @@ class NavConfig:
 
     Attributes:
         scene: scene name from the library (``navzoo scenes``) or a path to a YAML/JSON scene file.
-        n_robots: number of robots (agents ``robot_0..``).
+        n_robots: number of robots (agents ``robot_0..``); 0 = a pedestrian-only world (the episode
+            then ends at the time limit only).
         n_humans: number of pedestrians (agents ``human_0..``); ``None`` = the scene's default.
         robot: robot model and limits.
         human_model: pedestrian body controller; ``"kinematic"`` (root follows the planar command,
@@ -105,8 +106,10 @@ class NavConfig:
 
         if not isinstance(self.scene, str) or not self.scene:
             raise bad("scene", "a scene name or a path to a scene file")
-        if not _is_int(self.n_robots) or self.n_robots < 1:
-            raise bad("n_robots", "an integer >= 1")
+        if not _is_int(self.n_robots) or self.n_robots < 0:
+            raise bad("n_robots", "an integer >= 0")
+        if self.n_robots == 0 and self.n_humans == 0:
+            raise ValueError("NavConfig needs at least one agent: n_robots and n_humans are both 0")
         if self.n_humans is not None and (not _is_int(self.n_humans) or self.n_humans < 0):
             raise bad("n_humans", "None or an integer >= 0")
         if not isinstance(self.robot, RobotSpec):

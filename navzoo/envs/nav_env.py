@@ -452,7 +452,7 @@ class NavEnv(ParallelEnv):
             terminated[acting_idx] = True
         time_up = self.steps >= self.max_steps
         robots_left = robot_alive & ~terminated[:R]
-        end_all = time_up or not robots_left.any()
+        end_all = time_up or (R > 0 and not robots_left.any())
         truncated = np.zeros(self.n_total, dtype=bool)
         if end_all:
             truncated[acting_idx] = ~terminated[acting_idx]

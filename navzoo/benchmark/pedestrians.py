@@ -1,0 +1,298 @@
+"""Evaluate the physics pedestrians: ``navzoo eval pedestrians [--quick] [--json]``.
+
+Four measurements of the shipped AMP controller (``policies/amp_pedestrian``), as the paper's
+"Quantitative Evaluation of Pedestrian Simulation":
+
+* **tracking** of reference clips in closed loop (:mod:`navzoo.agents.amp.tracking`);
+* **following**: ``human_model="amp"`` pedestrians in the library scenes (3-15 per scene, one scene
+  after the other) for ``seconds`` each, on social-force target trajectories. Every walk from a start
+  to a goal is a *trip*; a trip ends in success (goal reached), a fall (the person is done: falls are
+  counted, not reset away) or a timeout (longer than ``2 x shortest path / preferred speed + 10 s``).
+  Rates are shares of ended trips: success, fall, map collision (the body touched a scene obstacle
+  during the trip), agent collision (it touched another person). Trips still under way when the
+  scene's time is up are not counted (reported as ``trips_running``). Path error: mean distance of
+  the root from the current target point, over all steps of standing-up pedestrians;
+* **realism** (:mod:`navzoo.benchmark.realism`) of the poses of the AMP pedestrians of the following
+  run and of kinematic pedestrians (walk-cycle replay) run the same way, against the reference clips;
+* **throughput** with pedestrians only: agent steps/s (one agent step = one 30 Hz control step of one
+  pedestrian, policy inference included) for 1-64 pedestrians.
+
+It also writes a video of an AMP crowd (``--video``). ``--quick`` runs a reduced version with the same
+keys in a few minutes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pybullet as p
+
+from navzoo.benchmark import realism
+from navzoo.envs.nav_env import _path_length
+
+SCENES = ("station", "home", "grocery", "circle_crossing", "square_crossing", "corridor", "doorway", "lobby")
+DT = 1.0 / 30.0
+
+
+def people_per_scene(n_scenes: int, lo: int = 3, hi: int = 15) -> list[int]:
+    """``lo`` .. ``hi`` pedestrians spread evenly over the scenes."""
+    if n_scenes == 1:
+        return [lo]
+    return [int(round(lo + (hi - lo) * k / (n_scenes - 1))) for k in range(n_scenes)]
+
+
+def _make(scene: str, n: int, human_model: str, seconds: float, seed: int, policy_dir: str | None):
+    from navzoo.envs.nav_env import NavEnv
+    from navzoo.envs.wrappers import FrozenAgents
+
+    env = NavEnv(scene=scene, n_robots=0, n_humans=n, human_model=human_model, dt=DT, crowd_model="sfm",
+                 time_limit=seconds)
+    if human_model == "amp":
+        from navzoo.agents.amp.pedestrian_policy import AmpPedestrianPolicy
+
+        policy: Any = AmpPedestrianPolicy(policy_dir)
+    else:
+        from navzoo.agents.crowd import CrowdPolicy
+
+        policy = CrowdPolicy("sfm")
+    wrapped = FrozenAgents(env, lambda a: a.startswith("human_"), policy)
+    wrapped.reset(seed=seed)
+    return wrapped, env
+
+
+def body_keypoints(client: int, ids: list[int]) -> np.ndarray:
+    """(H, 15, 3) link frame origins (joint centres) of humanoid bodies, read from PyBullet, in the
+    order of :data:`navzoo.benchmark.realism.KEYPOINT_NAMES` (works for kinematic and physics bodies)."""
+    out = np.empty((len(ids), realism.N_KEYPOINTS, 3))
+    links = list(range(realism.N_KEYPOINTS))
+    for k, b in enumerate(ids):
+        states = p.getLinkStates(b, links, computeForwardKinematics=1, physicsClientId=client)
+        out[k] = [s[4] for s in states]
+    return out
+
+
+def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, policy_dir: str | None = None,
+                 pose_every: int = 1, max_poses: int = 20_000) -> dict[str, Any]:
+    """One scene of :func:`following`: trip outcomes, contact flags, path error sums and poses."""
+    t0 = time.time()
+    wrapped, env = _make(scene, n, "amp", seconds, seed, policy_dir)
+    R = env.n_robots
+    h = np.arange(R, env.n_total)
+    start = np.zeros(n)
+    limit = 2.0 * env.shortest_path_length[h] / env.v_pref[h] + 10.0
+    m_flag = np.zeros(n, dtype=bool)
+    a_flag = np.zeros(n, dtype=bool)
+    goals = env.goals_reached[h].copy()
+    done = np.zeros(n, dtype=bool)
+    ended = {"success": 0, "fall": 0, "timeout": 0}
+    map_trips = agent_trips = 0
+    err_sum, err_n = 0.0, 0
+    poses: list[np.ndarray] = []
+    n_poses = steps = 0
+    while not env._needs_reset:
+        wrapped.step({})
+        steps += 1
+        t = env.sim_time
+        live = ~done
+        m_flag |= env.human_map_contact & live
+        a_flag |= env.human_agent_contact & live
+        err = np.linalg.norm(env.pos[h] - env.amp.target_now(), axis=1)
+        standing = live & ~env.human_fallen
+        err_sum += float(err[standing].sum())
+        err_n += int(standing.sum())
+        if pose_every and steps % pose_every == 0 and n_poses < max_poses and standing.any():
+            kp = body_keypoints(env.client, [env.amp.ids[j] for j in np.flatnonzero(standing)])
+            poses.append(realism.normalize_poses(kp))
+            n_poses += len(kp)
+        outcome = np.full(n, "", dtype=object)
+        outcome[env.human_fallen & live] = "fall"
+        outcome[(env.goals_reached[h] > goals) & live & (outcome == "")] = "success"
+        outcome[live & (outcome == "") & (t - start > limit)] = "timeout"
+        for j in np.flatnonzero(outcome != ""):
+            ended[outcome[j]] += 1
+            map_trips += int(m_flag[j])
+            agent_trips += int(a_flag[j])
+            m_flag[j] = a_flag[j] = False
+            start[j] = t
+            limit[j] = 2.0 * _path_length(env.paths[R + j], env.pos[R + j]) / env.v_pref[R + j] + 10.0
+            if outcome[j] == "fall":
+                done[j] = True
+        goals = env.goals_reached[h].copy()
+    wrapped.close()
+    return {
+        "scene": scene, "pedestrians": n, **ended, "map_trips": map_trips, "agent_trips": agent_trips,
+        "err_sum": err_sum, "err_n": err_n, "running": int((~done).sum()), "wall_s": round(time.time() - t0, 1),
+        "poses": np.concatenate(poses) if poses else np.zeros((0, realism.POSE_DIM)),
+    }
+
+
+def _pool_map(fn, jobs: list[tuple], workers: int) -> list[Any]:
+    if workers <= 1 or len(jobs) <= 1:
+        return [fn(*j) for j in jobs]
+    import multiprocessing as mp
+
+    with mp.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
+        return pool.starmap(fn, jobs)
+
+
+def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: int = 0,
+              policy_dir: str | None = None, workers: int = 1) -> tuple[dict[str, Any], np.ndarray]:
+    """Trip outcomes of AMP pedestrians in ``scenes`` (3-15 people, one process per scene with
+    ``workers`` > 1); returns (metrics, poses (M, 45) of the standing pedestrians, for realism)."""
+    jobs = [(sc, n, seconds, seed, policy_dir) for sc, n in zip(scenes, people_per_scene(len(scenes)), strict=True)]
+    rows = _pool_map(follow_scene, jobs, workers)
+    total = max(1, sum(r["success"] + r["fall"] + r["timeout"] for r in rows))
+    metrics = {
+        "success_rate": sum(r["success"] for r in rows) / total,
+        "fall_rate": sum(r["fall"] for r in rows) / total,
+        "map_collision_rate": sum(r["map_trips"] for r in rows) / total,
+        "agent_collision_rate": sum(r["agent_trips"] for r in rows) / total,
+        "path_error_m": sum(r["err_sum"] for r in rows) / max(1, sum(r["err_n"] for r in rows)),
+        "timeout_rate": sum(r["timeout"] for r in rows) / total,
+        "trips": sum(r["success"] + r["fall"] + r["timeout"] for r in rows),
+        "trips_running": sum(r["running"] for r in rows),
+        "seconds_per_scene": seconds,
+        "scenes": [{k: r[k] for k in ("scene", "pedestrians", "success", "fall", "timeout", "map_trips",
+                                      "agent_trips", "wall_s")} for r in rows],
+    }
+    return metrics, np.concatenate([r["poses"] for r in rows])
+
+
+def _kinematic_scene(scene: str, n: int, seconds: float, seed: int, max_poses: int) -> np.ndarray:
+    wrapped, env = _make(scene, n, "kinematic", seconds, seed, None)
+    poses: list[np.ndarray] = []
+    count = 0
+    while not env._needs_reset and count < max_poses:
+        wrapped.step({})
+        poses.append(realism.normalize_poses(body_keypoints(env.client, env.humans.ids)))
+        count += n
+    wrapped.close()
+    return np.concatenate(poses)
+
+
+def kinematic_poses(scenes: tuple[str, ...], seconds: float, seed: int = 0, max_poses: int = 20_000,
+                    workers: int = 1) -> np.ndarray:
+    """Poses (M, 45) of kinematic (walk-cycle replay) pedestrians run like :func:`following`."""
+    jobs = [(sc, n, seconds, seed, max_poses) for sc, n in zip(scenes, people_per_scene(len(scenes)), strict=True)]
+    return np.concatenate(_pool_map(_kinematic_scene, jobs, workers))
+
+
+def throughput(counts: tuple[int, ...] = (1, 2, 4, 8, 16, 32, 64), steps: int = 90, scene: str = "station",
+               policy_dir: str | None = None) -> list[dict[str, Any]]:
+    """Agent steps/s with pedestrians only (AMP bodies + batched policy), median of 3 timed blocks."""
+    rows = []
+    for n in counts:
+        wrapped, env = _make(scene, n, "amp", 1e6, 0, policy_dir)
+        for _ in range(10):
+            wrapped.step({})
+        blocks = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            for _ in range(steps // 3):
+                wrapped.step({})
+            blocks.append((time.perf_counter() - t0) / (steps // 3))
+        step_s = float(np.median(blocks))
+        rows.append({"pedestrians": n, "env_steps_per_s": 1.0 / step_s, "agent_steps_per_s": n / step_s,
+                     "realtime_factor": DT / step_s})
+        wrapped.close()
+    return rows
+
+
+def record_video(path: str | Path, scene: str = "lobby", n: int = 12, seconds: float = 12.0, seed: int = 0,
+                 policy_dir: str | None = None, size: tuple[int, int] = (640, 400)) -> Path:
+    """An mp4 of an AMP crowd (fixed camera over the scene centre, PyBullet TinyRenderer), 15 fps."""
+    import cv2
+
+    wrapped, env = _make(scene, n, "amp", seconds, seed, policy_dir)
+    xmin, ymin, xmax, ymax = env.scene.bounds
+    centre = [(xmin + xmax) / 2, (ymin + ymax) / 2, 0.5]
+    dist = 0.75 * max(xmax - xmin, ymax - ymin)
+    w, h = size
+    view = p.computeViewMatrixFromYawPitchRoll(centre, dist, 30.0, -45.0, 0.0, 2, physicsClientId=env.client)
+    proj = p.computeProjectionMatrixFOV(50.0, w / h, 0.1, 100.0, physicsClientId=env.client)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 15, (w, h))
+    k = 0
+    while not env._needs_reset:
+        wrapped.step({})
+        k += 1
+        if k % 2 == 0:
+            img = p.getCameraImage(w, h, view, proj, renderer=p.ER_TINY_RENDERER, physicsClientId=env.client)[2]
+            rgb = np.asarray(img, dtype=np.uint8).reshape(h, w, 4)[..., :3]
+            writer.write(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+    writer.release()
+    wrapped.close()
+    return path
+
+
+def evaluate(quick: bool = False, motions: str | None = None, policy_dir: str | None = None, seed: int = 0,
+             video: str | None = None, with_throughput: bool = True, workers: int = 1) -> dict[str, Any]:
+    from navzoo.agents.amp.tracking import load_motions, track_clips
+
+    t0 = time.time()
+    scenes = ("lobby", "corridor") if quick else SCENES
+    seconds = 20.0 if quick else 200.0
+    lib = load_motions(motions)
+    kwargs = {} if policy_dir is None else {"policy_dir": policy_dir}
+    track = track_clips(motions=lib, max_seconds=4.0 if quick else None, **kwargs)
+    tracking = {k: track[k] for k in ("mean_pos_error_m", "max_pos_error_m", "mean_rot_error_rad", "clip_success_rate",
+                                      "worst_pos_error_m", "fall_rate", "n_clips")}
+    follow, amp_poses = following(scenes, seconds, seed, policy_dir, workers=workers)
+    ref = realism.RealismReference.fit(realism.clip_poses(lib), seed=seed)
+    kin_poses = kinematic_poses(scenes, seconds, seed, workers=workers)
+    keys = ("coverage_k50", "entropy_k50", "dist_k50", "coverage_k100", "entropy_k100", "dist_k100", "mmd")
+    out: dict[str, Any] = {
+        "tracking": tracking,
+        "following": follow,
+        "realism": {
+            "amp": {k: v for k, v in realism.realism_metrics(amp_poses, ref).items() if k in keys + ("n_generated",)},
+            "kinematic": {k: v for k, v in realism.realism_metrics(kin_poses, ref).items() if k in keys + ("n_generated",)},
+            "reference_mmd_floor": ref.mmd_floor,
+        },
+    }
+    if with_throughput:
+        out["throughput"] = throughput((1, 4, 16) if quick else (1, 2, 4, 8, 16, 32, 64), policy_dir=policy_dir)
+    if video:
+        out["video"] = str(record_video(video, policy_dir=policy_dir, seconds=6.0 if quick else 12.0))
+    out["quick"] = quick
+    out["wall_s"] = round(time.time() - t0, 1)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="navzoo eval pedestrians", description=__doc__.splitlines()[0])
+    add_arguments(parser)
+    return run_cli(parser.parse_args(argv))
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--quick", action="store_true", help="reduced run (2 scenes x 20 s, clips capped at 4 s)")
+    parser.add_argument("--motions", default=None, help="folder of reference clips (default: packaged locomotion)")
+    parser.add_argument("--policy", default=None, help="exported AMP policy folder (default: the shipped one)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--video", default=None, help="also write an mp4 of an AMP crowd here")
+    parser.add_argument("--no-throughput", action="store_true")
+    parser.add_argument("--workers", type=int, default=1, help="processes for the scenes of the following run")
+    parser.add_argument("--out", default=None, help="also write the JSON result to this file")
+    parser.add_argument("--json", action="store_true", help="print JSON")
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    result = evaluate(args.quick, args.motions, args.policy, args.seed, args.video, not args.no_throughput,
+                      args.workers)
+    text = json.dumps(result, indent=None if args.json else 2, default=float)
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(text + "\n")
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,143 @@
+"""human_model="amp": physics pedestrians in NavEnv, frozen on the shipped policy, and their evaluation."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from pettingzoo.test import parallel_api_test
+
+from navzoo.benchmark import pedestrians
+from navzoo.envs.amp_humans import ACT_DIM, OBS_DIM
+from navzoo.envs.config import NavConfig
+from navzoo.envs.nav_env import NavEnv
+from navzoo.envs.registry import make
+
+DT = 1.0 / 30.0
+
+
+def _raw(**kw):
+    cfg = dict(scene="lobby", n_robots=1, n_humans=2, human_model="amp", dt=DT, max_episode_steps_override=30)
+    cfg.update(kw)
+    return NavEnv(**cfg)
+
+
+def test_amp_config_needs_the_controller_rate():
+    with pytest.raises(ValueError, match="multiple of 1/30"):
+        NavConfig(human_model="amp", dt=0.1 + 1e-3)
+    NavConfig(human_model="amp", dt=0.1)  # 3 control steps per env step: allowed
+    with pytest.raises(ValueError, match="human_model"):
+        NavConfig(human_model="ragdoll")
+    with pytest.raises(ValueError, match="at least one agent"):
+        NavConfig(n_robots=0, n_humans=0)
+
+
+def test_amp_spaces_and_action_validation():
+    env = _raw()
+    obs, _ = env.reset(seed=0)
+    assert env.action_space("human_0").shape == (ACT_DIM,)
+    assert env.observation_space("human_0").shape == (OBS_DIM,)
+    assert obs["human_0"].shape == (OBS_DIM,) and np.isfinite(obs["human_0"]).all()
+    assert env.action_space("robot_0").shape == (2,)
+    good = {"robot_0": np.zeros(2), "human_0": np.zeros(ACT_DIM), "human_1": np.zeros(ACT_DIM)}
+    with pytest.raises(ValueError, match=r"human_0.*shape \(28,\)"):
+        env.step({**good, "human_0": np.zeros(2)})
+    bad = np.zeros(ACT_DIM)
+    bad[3] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        env.step({**good, "human_1": bad})
+    env.step(good)  # nothing was lost by the rejected calls
+    env.close()
+
+
+def test_amp_parallel_api():
+    env = _raw(max_episode_steps_override=12)
+    parallel_api_test(env, num_cycles=12)
+    env.close()
+
+
+def test_frozen_amp_pedestrians_walk_their_paths():
+    env = make("navzoo/Lobby-v0", human_model="amp", n_humans=3, max_episode_steps_override=120)
+    raw = env.unwrapped
+    assert raw.config.dt == pytest.approx(DT)
+    env.reset(seed=3)
+    start = raw.pos[raw.n_robots:].copy()
+    errs = []
+    for _ in range(90):  # 3 s
+        env.step({"robot_0": np.zeros(2, np.float32)})
+        errs.append(np.linalg.norm(raw.pos[raw.n_robots:] - raw.amp.target_now(), axis=1))
+    moved = np.linalg.norm(raw.pos[raw.n_robots:] - start, axis=1)
+    assert (moved > 1.5).all(), moved  # walking (about 1.2 m/s), not standing or drifting
+    assert not raw.human_fallen.any()
+    assert float(np.mean(errs)) < 0.4
+    # The bodies stand upright (root near its standing height).
+    z = raw.amp.state()["root_pos"][:, 2]
+    assert (z > 0.7 * raw.amp.bodies.standing_height).all()
+    env.close()
+
+
+def test_pushed_pedestrian_falls_and_is_done():
+    env = _raw(n_humans=2, max_episode_steps_override=200)
+    env.reset(seed=1)
+    env.amp.bodies.push([0], np.array([[0.0, 1500.0, 0.0]]), 0.3)
+    zero = {"robot_0": np.zeros(2), "human_0": np.zeros(ACT_DIM), "human_1": np.zeros(ACT_DIM)}
+    fell_at = None
+    for k in range(60):
+        _, _, term, _, info = env.step({a: zero[a] for a in env.agents})
+        if "human_0" in term and term["human_0"]:
+            assert info["human_0"]["fallen"]
+            fell_at = k
+            break
+    assert fell_at is not None, "a 1500 N push for 0.3 s must knock the body over"
+    assert "human_0" not in env.agents and "human_1" in env.agents
+    env.close()
+
+
+def test_amp_world_is_deterministic():
+    def run():
+        env = make("navzoo/Lobby-v0", human_model="amp", n_humans=2, max_episode_steps_override=40)
+        env.reset(seed=7)
+        for _ in range(20):
+            env.step({"robot_0": np.array([0.5, 0.1], np.float32)})
+        out = env.unwrapped.pos.copy()
+        env.close()
+        return out
+
+    np.testing.assert_array_equal(run(), run())
+
+
+def test_pedestrian_only_world_runs_to_the_time_limit():
+    env = make(None, scene="lobby", n_robots=0, n_humans=2, human_model="amp", max_episode_steps_override=15)
+    env.reset(seed=0)
+    for k in range(15):
+        assert not env.unwrapped._needs_reset
+        env.step({})
+    assert env.unwrapped._needs_reset and k == 14
+    env.close()
+
+
+def test_follow_scene_counts_trips_and_poses():
+    row = pedestrians.follow_scene("lobby", 3, seconds=3.0, seed=0)
+    assert row["err_n"] > 0 and 0.0 <= row["err_sum"] / row["err_n"] < 1.0
+    assert row["poses"].shape[1] == 45 and len(row["poses"]) > 100
+    assert row["fall"] + row["success"] + row["timeout"] + row["running"] >= 3
+    assert pedestrians.people_per_scene(8) == [3, 5, 6, 8, 10, 12, 13, 15]
+
+
+@pytest.mark.slow
+def test_eval_pedestrians_cli_quick(tmp_path):
+    out = tmp_path / "ped.json"
+    r = subprocess.run([sys.executable, "-m", "navzoo.cli", "eval", "pedestrians", "--quick", "--json",
+                        "--no-throughput", "--out", str(out)], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    res = json.loads(out.read_text())
+    assert set(res["tracking"]) >= {"mean_pos_error_m", "max_pos_error_m", "mean_rot_error_rad", "clip_success_rate"}
+    assert set(res["following"]) >= {"success_rate", "fall_rate", "map_collision_rate", "agent_collision_rate",
+                                     "path_error_m"}
+    for model in ("amp", "kinematic"):
+        assert set(res["realism"][model]) >= {"coverage_k50", "entropy_k50", "coverage_k100", "entropy_k100", "mmd"}
+        assert 0.0 < res["realism"][model]["coverage_k50"] <= 1.0
+    assert 0.0 <= res["following"]["success_rate"] <= 1.0
