@@ -112,10 +112,11 @@ def test_amp_world_is_deterministic():
 def test_pedestrian_only_world_runs_to_the_time_limit():
     env = make(None, scene="lobby", n_robots=0, n_humans=2, human_model="amp", max_episode_steps_override=15)
     env.reset(seed=0)
-    for k in range(15):
-        assert not env.unwrapped._needs_reset
+    steps = 0
+    while not env.unwrapped._needs_reset:
         env.step({})
-    assert env.unwrapped._needs_reset and k == 14
+        steps += 1
+    assert steps == 15
     env.close()
 
 
