@@ -24,7 +24,7 @@ if [ -f "$RESUME_DIR/name" ]; then
 fi
 timeout "${TRAIN_S:-500}" python3 -m navzoo.agents.amp.train --out /tmp/amp --workers 15 --envs-per-worker 16 \
   --device cuda --hidden 1024,512 --minibatch-size 1920 --time-limit-s "${LIMIT_S:-455}" --total-steps 500000000 \
-  --ckpt-every 10 --ckpt-replay-rows 8000 --stage "${STAGE:-1}" --json > "$OUT/train.log" 2>&1
+  --ckpt-every 10 --ckpt-replay-rows 8000 --stage "${STAGE:-1}" --obstacles "${OBSTACLES:-0}" --json > "$OUT/train.log" 2>&1
 echo "train rc=$?"
 tail -5 "$OUT/train.log"
 cp /tmp/amp/metrics.jsonl "$OUT/" 2>/dev/null

@@ -337,3 +337,68 @@ def task_observation(root_pos: np.ndarray, root_quat: np.ndarray, waypoints: np.
     c, s = np.cos(h)[:, None], np.sin(h)[:, None]
     local = np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], axis=-1)
     return local.reshape(local.shape[0], -1)
+
+
+#: Obstacle observation: ``N_RAYS`` horizontal rays from the root, evenly spaced from the heading
+#: direction counter-clockwise, each reporting ``1 - min(d, RAY_RANGE) / RAY_RANGE`` for the distance
+#: d to the first wall segment or body disc it meets (0 = nothing within range, 1 = touching).
+N_RAYS = 16
+RAY_RANGE = 3.0  # m
+
+
+def obstacle_observation(
+    root_xy: np.ndarray,
+    heading_yaw: np.ndarray,
+    segments: np.ndarray | None = None,
+    discs_xy: np.ndarray | None = None,
+    discs_r: np.ndarray | float = 0.3,
+    self_disc: np.ndarray | None = None,
+) -> np.ndarray:
+    """Ray-cast obstacle features (N, N_RAYS) of N bodies at ``root_xy`` (N, 2) facing ``heading_yaw``.
+
+    Args:
+        segments: wall segments (M, 2, 2) in the world frame (None or M = 0: no walls).
+        discs_xy / discs_r: other bodies as discs (K, 2) / (K,) or a scalar radius (people, robots).
+        self_disc: (N,) index into the discs of each ray origin's own disc (skipped), or -1.
+    """
+    o = np.asarray(root_xy, dtype=np.float64).reshape(-1, 2)
+    n = o.shape[0]
+    ang = np.asarray(heading_yaw, dtype=np.float64).reshape(n, 1) + (2 * np.pi / N_RAYS) * np.arange(N_RAYS)
+    d = np.stack([np.cos(ang), np.sin(ang)], axis=-1)  # (N, R, 2)
+    best = np.full((n, N_RAYS), RAY_RANGE)
+    if segments is not None and len(segments):
+        seg = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2)
+        a, e = seg[:, 0], seg[:, 1] - seg[:, 0]  # (M, 2)
+        # Only segments that come within range of some origin matter.
+        ap = o[:, None, :] - a[None]  # (N, M, 2)
+        t_proj = np.clip(np.sum(ap * e[None], axis=-1) / np.maximum(np.sum(e * e, axis=-1), 1e-12)[None], 0, 1)
+        near = np.linalg.norm(ap - t_proj[..., None] * e[None], axis=-1).min(axis=0) < RAY_RANGE
+        if near.any():
+            a, e = a[near], e[near]
+            w = a[None, None] - o[:, None, None, :]  # (N, 1, M, 2)
+            dd = d[:, :, None, :]  # (N, R, 1, 2)
+            denom = dd[..., 0] * e[None, None, :, 1] - dd[..., 1] * e[None, None, :, 0]  # cross(d, e)
+            ok = np.abs(denom) > 1e-12
+            safe = np.where(ok, denom, 1.0)
+            t = (w[..., 0] * e[None, None, :, 1] - w[..., 1] * e[None, None, :, 0]) / safe  # cross(w, e) / cross(d, e)
+            u = (w[..., 0] * dd[..., 1] - w[..., 1] * dd[..., 0]) / safe  # cross(w, d) / cross(d, e)
+            hit = ok & (t >= 0) & (u >= 0) & (u <= 1)
+            best = np.minimum(best, np.where(hit, t, RAY_RANGE).min(axis=-1))
+    if discs_xy is not None and len(discs_xy):
+        c = np.asarray(discs_xy, dtype=np.float64).reshape(-1, 2)
+        r = np.broadcast_to(np.asarray(discs_r, dtype=np.float64), (c.shape[0],))
+        w = c[None] - o[:, None]  # (N, K, 2)
+        dist = np.linalg.norm(w, axis=-1)
+        tc = np.einsum("nrx,nkx->nrk", d, w)  # (N, R, K)
+        h2 = dist[:, None, :] ** 2 - tc**2
+        inside = dist[:, None, :] < r[None, None]
+        t = np.where(inside, 0.0, tc - np.sqrt(np.maximum(r[None, None] ** 2 - h2, 0.0)))
+        hit = inside | ((h2 <= r[None, None] ** 2) & (t >= 0))
+        if self_disc is not None:
+            own = np.asarray(self_disc).reshape(n)
+            mask = np.zeros((n, c.shape[0]), dtype=bool)
+            valid = own >= 0
+            mask[np.flatnonzero(valid), own[valid]] = True
+            hit &= ~mask[:, None, :]
+        best = np.minimum(best, np.where(hit, t, RAY_RANGE).min(axis=-1))
+    return 1.0 - best / RAY_RANGE

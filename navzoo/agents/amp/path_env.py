@@ -30,8 +30,10 @@ import numpy as np
 from navzoo import sim as nzsim
 from navzoo.agents.amp.features import (
     FEATURE_DIM,
+    N_RAYS,
     amp_features,
     heading,
+    obstacle_observation,
     quat_mul,
     quat_rotate,
     reference_features,
@@ -76,6 +78,11 @@ class PathTaskConfig:
     push_interval: tuple[float, float] = (3.0, 8.0)  # s between pushes
     push_force: tuple[float, float] = (50.0, 250.0)  # N, horizontal, on the pelvis
     push_seconds: float = 0.2
+    # obstacles (stage 3): the policy sees ray-cast obstacle features; each patch holds static boxes
+    # and, with pair_patches, two humanoids that can bump into each other
+    obstacle_obs: bool = False
+    boxes_per_patch: int = 0
+    pair_patches: bool = False
 
     def __post_init__(self) -> None:
         if self.stage not in (1, 2, 3):
@@ -106,7 +113,7 @@ class AmpPathEnv:
         self.num_envs = int(num_envs)
         self.reference = reference
         self.dt = 1.0 / self.cfg.control_hz
-        self.obs_dim = FEATURE_DIM + 2 * self.cfg.n_waypoints
+        self.obs_dim = FEATURE_DIM + 2 * self.cfg.n_waypoints + (N_RAYS if self.cfg.obstacle_obs else 0)
         self.act_dim = ACTION_DIM
         self.amp_obs_dim = FEATURE_DIM * self.cfg.amp_window
         self.episode_steps = int(round(self.cfg.episode_seconds * self.cfg.control_hz))
@@ -115,10 +122,16 @@ class AmpPathEnv:
         self.client = nzsim.connect()
         self.bodies = PhysicsHumanoids(self.client, self.num_envs, physics_hz=self.cfg.physics_hz,
                                        control_hz=self.cfg.control_hz, pd_mode=self.cfg.pd_mode)
-        cols = int(np.ceil(np.sqrt(self.num_envs)))
         k = np.arange(self.num_envs)
-        self.origins = np.stack([(k % cols) * self.cfg.spacing, (k // cols) * self.cfg.spacing], axis=1).astype(float)
+        patch = k // 2 if self.cfg.pair_patches else k
+        n_patches = int(patch.max()) + 1
+        cols = int(np.ceil(np.sqrt(n_patches)))
+        self.patch = patch
+        self.origins = np.stack([(patch % cols) * self.cfg.spacing, (patch // cols) * self.cfg.spacing],
+                                axis=1).astype(float)
+        self.partner = np.where(self.cfg.pair_patches & ((k ^ 1) < self.num_envs), k ^ 1, -1)
         self.rng = np.random.default_rng(seed)
+        self._segments, self._patch_segments = self._build_boxes(n_patches, cols)
         self.paths = np.zeros((self.num_envs, self._path_len, 2))
         self.t = np.zeros(self.num_envs, dtype=int)
         self._window = np.zeros((self.num_envs, self.cfg.amp_window, FEATURE_DIM))
@@ -135,6 +148,61 @@ class AmpPathEnv:
         self._nb_goal = np.zeros((e, nv, 2))
         self._nb_speed = np.ones((e, nv))
         self._sfm = SocialForceParams()
+
+    # ------------------------------------------------------------------ obstacles
+    def _build_boxes(self, n_patches: int, cols: int) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Static boxes (0.4-1.6 m sides, 1 m high) in every patch; returns all wall segments and each
+        patch's. The layout is drawn once from the env's seed."""
+        import pybullet as p
+
+        from navzoo.world.builder import GROUP_STATIC, MASK_ALL
+
+        cfg = self.cfg
+        per_patch: list[np.ndarray] = []
+        for q in range(n_patches):
+            origin = np.array([(q % cols) * cfg.spacing, (q // cols) * cfg.spacing], dtype=float)
+            segs = []
+            for _ in range(cfg.boxes_per_patch):
+                r = cfg.arena_radius * np.sqrt(self.rng.uniform(0.1, 0.8))
+                a = self.rng.uniform(-np.pi, np.pi)
+                centre = origin + r * np.array([np.cos(a), np.sin(a)])
+                half = self.rng.uniform(0.2, 0.8, 2)
+                yaw = self.rng.uniform(-np.pi, np.pi)
+                col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[half[0], half[1], 0.5], physicsClientId=self.client)
+                body = p.createMultiBody(0.0, col, -1, [centre[0], centre[1], 0.5], yaw_quat(np.array(yaw)).tolist(),
+                                         physicsClientId=self.client)
+                p.setCollisionFilterGroupMask(body, -1, GROUP_STATIC, MASK_ALL, physicsClientId=self.client)
+                c, s_ = np.cos(yaw), np.sin(yaw)
+                corners = centre + (np.array([[1, 1], [-1, 1], [-1, -1], [1, -1]]) * half) @ np.array([[c, s_], [-s_, c]])
+                segs += [[corners[j], corners[(j + 1) % 4]] for j in range(4)]
+            per_patch.append(np.asarray(segs, dtype=float).reshape(-1, 2, 2))
+        return np.concatenate(per_patch) if per_patch else np.zeros((0, 2, 2)), per_patch
+
+    def _clearance(self, i: int, pts: np.ndarray) -> np.ndarray:
+        """Distance of points (P, 2) to the boxes of env i's patch (inf without boxes)."""
+        seg = self._patch_segments[self.patch[i]]
+        if len(seg) == 0:
+            return np.full(len(pts), np.inf)
+        a, e = seg[:, 0], seg[:, 1] - seg[:, 0]
+        ap = pts[:, None, :] - a[None]
+        t = np.clip(np.sum(ap * e[None], axis=-1) / np.sum(e * e, axis=-1)[None], 0, 1)
+        return np.linalg.norm(ap - t[..., None] * e[None], axis=-1).min(axis=1)
+
+    def _free_point(self, i: int, avoid: np.ndarray | None = None, lo: float = 0.0, hi: float = np.inf,
+                    near: np.ndarray | None = None) -> np.ndarray:
+        """A random point of env i's arena 0.8 m clear of boxes, 1 m from ``avoid``, ``lo``-``hi`` from ``near``."""
+        best = self.origins[i].copy()
+        for _ in range(50):
+            q = self.origins[i] + self._random_points(1)[0]
+            if self._clearance(i, q[None])[0] < 0.8:
+                continue
+            if avoid is not None and np.linalg.norm(q - avoid) < 1.0:
+                continue
+            if near is not None and not lo <= np.linalg.norm(q - near) <= hi:
+                best = q
+                continue
+            return q
+        return best
 
     # ------------------------------------------------------------------ paths
     def _make_path(self, start: np.ndarray, yaw0: float, speed0: float) -> np.ndarray:
@@ -167,7 +235,12 @@ class AmpPathEnv:
             return
         rsi = self.rng.random(idx.size) < self.cfg.rsi_prob
         yaw = self.rng.uniform(-np.pi, np.pi, idx.size)
-        xy = self.origins[idx]
+        xy = self.origins[idx].copy()
+        if self.cfg.boxes_per_patch or self.cfg.pair_patches:
+            roots = self.bodies.read_state()["root_pos"][:, :2]
+            for k, i in enumerate(idx):
+                j = self.partner[i]
+                xy[k] = self._free_point(int(i), roots[j] if j >= 0 else None)
         states: list[ReferenceState] = []
         speeds = np.zeros(idx.size)
         if rsi.any():
@@ -199,11 +272,7 @@ class AmpPathEnv:
         cfg = self.cfg
         if self.rng.random() < cfg.stop_prob:
             self._wait_until[i] = self.t[i] + int(self.rng.uniform(1.0, 3.0) * cfg.control_hz)
-        for _ in range(20):
-            g = self.origins[i] + self._random_points(1)[0]
-            if 3.0 <= np.linalg.norm(g - pos) <= 9.0:
-                break
-        self._goal[i] = g
+        self._goal[i] = self._free_point(i, near=pos, lo=3.0, hi=9.0)
 
     def _reset_stage3(self, idx: np.ndarray, state: dict[str, np.ndarray]) -> None:
         cfg = self.cfg
@@ -235,9 +304,16 @@ class AmpPathEnv:
         vel = state["root_lin_vel"][idx, :2]
         waiting = self._wait_until[idx] > self.t[idx]
         goal = np.where(waiting[:, None], pos, self._goal[idx])
+        o_pos, o_vel = self._nb_pos[idx].reshape(-1, 2), self._nb_vel[idx].reshape(-1, 2)
+        partners = self.partner[idx]
+        partners = partners[partners >= 0]
+        if partners.size:  # the other humanoid of a shared patch, at constant velocity
+            o_pos = np.concatenate([o_pos, state["root_pos"][partners, :2]])
+            o_vel = np.concatenate([o_vel, state["root_lin_vel"][partners, :2]])
         roll = sfm_rollout(pos, vel, goal_pref_velocity(goal, self._speed[idx]), steps, cfg.plan_dt,
-                           params=self._sfm, others_pos=self._nb_pos[idx].reshape(-1, 2),
-                           others_vel=self._nb_vel[idx].reshape(-1, 2))
+                           params=self._sfm, others_pos=o_pos, others_vel=o_vel,
+                           segments=self._segments if len(self._segments) else None,
+                           segment_groups=np.arange(len(self._segments)) // 4 if len(self._segments) else None)
         n = int(round(horizon * cfg.control_hz))
         path = resample(roll, cfg.plan_dt, self.dt, n)
         for k, i in enumerate(idx):
@@ -255,8 +331,10 @@ class AmpPathEnv:
         d = self._nb_goal.reshape(-1, 2) - pos
         dist = np.linalg.norm(d, axis=1, keepdims=True)
         pref = d / np.maximum(dist, 1e-9) * self._nb_speed.reshape(-1, 1)
-        vel = social_force_velocities(pos, self._nb_vel.reshape(-1, 2), pref, 0.3, 2.0, self.dt, self._sfm,
-                                      others_pos=state["root_pos"][:, :2], others_vel=state["root_lin_vel"][:, :2])
+        segs = self._segments if len(self._segments) else None
+        vel = social_force_velocities(pos, self._nb_vel.reshape(-1, 2), pref, 0.3, 2.0, self.dt, self._sfm, segs,
+                                      others_pos=state["root_pos"][:, :2], others_vel=state["root_lin_vel"][:, :2],
+                                      segment_groups=None if segs is None else np.arange(len(segs)) // 4)
         self._nb_pos = (pos + self.dt * vel).reshape(e, nv, 2)
         self._nb_vel = vel.reshape(e, nv, 2)
         arrived = np.linalg.norm(self._nb_goal - self._nb_pos, axis=2) < 0.5
@@ -280,7 +358,12 @@ class AmpPathEnv:
         steps = self.t[:, None] + self._wp_stride * np.arange(1, self.cfg.n_waypoints + 1)[None, :]
         wp = np.take_along_axis(self.paths, np.minimum(steps, self._path_len - 1)[..., None], axis=1)
         task = task_observation(state["root_pos"], state["root_quat"], wp)
-        return np.concatenate([self_observation(state), task], axis=1).astype(np.float32)
+        parts = [self_observation(state), task]
+        if self.cfg.obstacle_obs:
+            root = state["root_pos"][:, :2]
+            parts.append(obstacle_observation(root, heading(state["root_quat"]), self._segments, root, 0.3,
+                                              self_disc=np.arange(self.num_envs)))
+        return np.concatenate(parts, axis=1).astype(np.float32)
 
     def reset(self, seed: int | None = None) -> np.ndarray:
         if seed is not None:

@@ -48,6 +48,7 @@ class TrainArgs:
     ckpt_replay_rows: int = 10_000
     time_limit_s: float | None = None
     pd_mode: str = "motor"
+    obstacles: int = 0  # 1: obstacle rays in the observation, boxes and paired humanoids in each patch
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -69,7 +70,8 @@ def run(args: TrainArgs) -> dict[str, Any]:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     hidden = tuple(int(h) for h in args.hidden.split(","))
-    task = PathTaskConfig(stage=args.stage, pd_mode=args.pd_mode)
+    task = PathTaskConfig(stage=args.stage, pd_mode=args.pd_mode, obstacle_obs=bool(args.obstacles),
+                          boxes_per_patch=4 if args.obstacles else 0, pair_patches=bool(args.obstacles))
     if args.workers > 1:
         env: Any = SubprocAmpVecEnv(locomotion_reference, args.workers, args.envs_per_worker, task, seed=args.seed)
     else:
