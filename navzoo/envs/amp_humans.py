@@ -3,8 +3,9 @@
 The env owns one :class:`AmpHumans`. Each pedestrian is a :class:`~navzoo.agents.amp.sim.PhysicsHumanoids`
 body in the env's PyBullet client (120 Hz physics, 30 Hz control, torque-limited joint motors) that
 collides with the scene, the robots and the other pedestrians. Its action is the 28 joint PD targets in
-[-1, 1]; its observation is the AMP controller's input: the body's self-observation and the next
-``n_waypoints`` points (every ``waypoint_dt``) of its target trajectory in its heading frame.
+[-1, 1]; its observation is the AMP controller's input: the body's self-observation, the next
+``n_waypoints`` points (every ``waypoint_dt``) of its target trajectory in its heading frame, and 16
+obstacle rays (walls, other people and robots as discs; :func:`~navzoo.agents.amp.features.obstacle_observation`).
 
 Target trajectories come from the env's crowd model (social force or ORCA) following each person's A*
 path: every ``replan_seconds`` the model is rolled out from the bodies' *actual* positions and
@@ -20,7 +21,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pybullet as p
 
-from navzoo.agents.amp.features import FEATURE_DIM, heading, self_observation, task_observation
+from navzoo.agents.amp.features import (
+    FEATURE_DIM,
+    N_RAYS,
+    heading,
+    obstacle_observation,
+    self_observation,
+    task_observation,
+)
 from navzoo.agents.amp.sim import ACTION_DIM, PhysicsHumanoids, actions_to_targets
 from navzoo.agents.orca import OrcaParams, orca_velocities
 from navzoo.agents.policy import preferred_velocity
@@ -34,7 +42,7 @@ PHYSICS_HZ = 120
 CONTROL_HZ = 30
 N_WAYPOINTS = 10
 WAYPOINT_DT = 0.5
-OBS_DIM = FEATURE_DIM + 2 * N_WAYPOINTS
+OBS_DIM = FEATURE_DIM + 2 * N_WAYPOINTS + N_RAYS
 ACT_DIM = ACTION_DIM
 PLAN_DT = 0.1
 
@@ -143,8 +151,14 @@ class AmpHumans:
     def observations(self) -> np.ndarray:
         """(H, OBS_DIM) float32: the AMP controller's input of every pedestrian."""
         s = self.state()
+        env = self.env
         task = task_observation(s["root_pos"], s["root_quat"], self.waypoints())
-        return np.concatenate([self_observation(s), task], axis=1).astype(np.float32)
+        others = np.flatnonzero(env.alive | ~env.is_robot)  # live robots and every person (fallen ones lie there)
+        own = np.full(env.n_total, -1)
+        own[others] = np.arange(others.size)
+        rays = obstacle_observation(s["root_pos"][:, :2], heading(s["root_quat"]), env.segments, env.pos[others],
+                                    env.radius[others], self_disc=own[env.n_robots:])
+        return np.concatenate([self_observation(s), task, rays], axis=1).astype(np.float32)
 
     def set_actions(self, actions: np.ndarray) -> None:
         sph, rev = actions_to_targets(np.clip(np.asarray(actions, dtype=np.float64), -1.0, 1.0))

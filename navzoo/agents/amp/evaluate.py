@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from navzoo.agents.amp.checkpoint import load_policy
+from navzoo.agents.amp.features import FEATURE_DIM, N_RAYS
 from navzoo.agents.amp.path_env import AmpPathEnv, PathTaskConfig
 from navzoo.agents.amp.train import locomotion_reference
 
@@ -23,7 +24,9 @@ from navzoo.agents.amp.train import locomotion_reference
 def evaluate(policy_dir: str, envs: int = 16, seconds: float = 30.0, stage: int = 1, seed: int = 123,
              pd_mode: str = "motor") -> dict[str, Any]:
     policy = load_policy(policy_dir)
-    task = PathTaskConfig(stage=stage, rsi_prob=0.0, pd_mode=pd_mode)
+    rays = getattr(policy, "obs_dim", 0) == FEATURE_DIM + 2 * PathTaskConfig().n_waypoints + N_RAYS
+    task = PathTaskConfig(stage=stage, rsi_prob=0.0, pd_mode=pd_mode, obstacle_obs=rays,
+                          boxes_per_patch=4 if rays and stage == 3 else 0, pair_patches=rays and stage == 3)
     env = AmpPathEnv(envs, locomotion_reference(), task, seed=seed)
     obs = env.reset(seed=seed)
     steps = np.zeros(envs, dtype=int)

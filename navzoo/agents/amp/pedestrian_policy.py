@@ -40,6 +40,10 @@ class AmpPedestrianPolicy:
         if env.config.human_model != "amp":
             raise ValueError("AmpPedestrianPolicy drives human_model='amp' pedestrians; "
                              f"this env has human_model={env.config.human_model!r}")
+        want = getattr(self.policy, "obs_dim", None)
+        have = env.observation_space(env.possible_agents[-1]).shape[0] if env.n_humans else want
+        if want is not None and want != have:
+            raise ValueError(f"policy {self.policy_dir} takes {want} inputs, the env's pedestrians observe {have}")
 
     def act(self, observations: dict[str, Any], env: NavEnv) -> dict[str, np.ndarray]:
         names = list(observations)

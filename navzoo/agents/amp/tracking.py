@@ -71,7 +71,13 @@ import numpy as np
 
 from navzoo import sim as nzsim
 from navzoo.agents.amp.checkpoint import POLICY_CONFIG, load_policy
-from navzoo.agents.amp.features import self_observation, task_observation
+from navzoo.agents.amp.features import (
+    N_RAYS,
+    heading,
+    obstacle_observation,
+    self_observation,
+    task_observation,
+)
 from navzoo.agents.amp.path_env import PathTaskConfig
 from navzoo.agents.amp.sim import PhysicsHumanoids, actions_to_targets
 from navzoo.agents.motion_lib import DEFAULT_NAME, MotionLibrary, humanoid_fk
@@ -217,6 +223,11 @@ def _shift(ref: ReferenceState, d: np.ndarray) -> ReferenceState:
                           ref.root_ang_vel, ref.sph_vel, ref.rev_vel)
 
 
+def _base_obs_dim(cfg: PathTaskConfig) -> int:
+    """Policy inputs without obstacle rays: self-observation + target waypoints."""
+    return 105 + 2 * cfg.n_waypoints
+
+
 def _track_batch(
     policy: Any,
     lib: MotionLibrary,
@@ -272,9 +283,12 @@ def _track_batch(
         for step in range(1, max_steps + 1):
             t = step - 1  # the observation at time t looks at the path points t + stride * j
             wp = paths[:, np.minimum(t + wp_offsets, path_len - 1)]
-            obs = np.concatenate(
-                [self_observation(state), task_observation(state["root_pos"], state["root_quat"], wp)], axis=1
-            ).astype(np.float32)
+            parts = [self_observation(state), task_observation(state["root_pos"], state["root_quat"], wp)]
+            if getattr(policy, "obs_dim", 0) == _base_obs_dim(cfg) + N_RAYS:  # obstacle rays: open ground
+                root = state["root_pos"][:, :2]
+                parts.append(obstacle_observation(root, heading(state["root_quat"]), None, root, 0.3,
+                                                  self_disc=np.arange(n)))
+            obs = np.concatenate(parts, axis=1).astype(np.float32)
             sph, rev = actions_to_targets(np.clip(np.asarray(policy(obs), dtype=np.float64), -1.0, 1.0))
             bodies.apply_targets(sph, rev)
             bodies.step()
@@ -361,8 +375,8 @@ def track_clips(
         raise ValueError(f"fail_threshold must be positive, got {fail_threshold!r}")
     cfg = config or PathTaskConfig()
     policy = _load_policy_dir(policy_dir, device)
-    obs_dim = 105 + 2 * cfg.n_waypoints
-    if getattr(policy, "obs_dim", obs_dim) != obs_dim:
+    obs_dim = _base_obs_dim(cfg)
+    if getattr(policy, "obs_dim", obs_dim) not in (obs_dim, obs_dim + N_RAYS):
         raise ValueError(
             f"policy {policy_dir} expects {policy.obs_dim} observations, this task gives {obs_dim} "
             f"(n_waypoints={cfg.n_waypoints})"
