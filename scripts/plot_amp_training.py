@@ -1,0 +1,64 @@
+"""Plot the AMP training curves of training/amp/metrics.jsonl into docs/img/amp_training.png.
+
+    python scripts/plot_amp_training.py [--metrics training/amp/metrics.jsonl] [--out docs/img/amp_training.png]
+
+Stage boundaries (curriculum changes) are taken from training/amp/stages.json: a list of
+{"from_step": N, "label": "..."} entries, drawn as vertical lines.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def smooth(y: np.ndarray, k: int = 25) -> np.ndarray:
+    ok = np.isfinite(y)
+    y = np.where(ok, y, 0.0)
+    w = np.convolve(ok.astype(float), np.ones(k), "same")
+    return np.convolve(y, np.ones(k), "same") / np.maximum(w, 1)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--metrics", default="training/amp/metrics.jsonl")
+    ap.add_argument("--stages", default="training/amp/stages.json")
+    ap.add_argument("--out", default="docs/img/amp_training.png")
+    args = ap.parse_args()
+    rows = [json.loads(line) for line in Path(args.metrics).read_text().splitlines() if line.strip()]
+    step = np.array([r["global_step"] for r in rows]) / 1e6
+    panels = [("episode/task_return", "episode task return"), ("episode/length", "episode length (steps, 30 Hz)"),
+              ("rewards/style", "style reward / step"), ("disc/acc_policy", "discriminator accuracy on policy")]
+    stages = json.loads(Path(args.stages).read_text()) if Path(args.stages).exists() else []
+    fig, axes = plt.subplots(2, 2, figsize=(11, 6.5), sharex=True)
+    for ax, (key, title) in zip(axes.flat, panels, strict=True):
+        y = np.array([r.get(key, np.nan) if r.get(key) is not None else np.nan for r in rows], dtype=float)
+        ax.plot(step, y, color="0.8", lw=0.5)
+        ax.plot(step, smooth(y), color="C0", lw=1.5)
+        ax.set_title(title, fontsize=10)
+        lo, hi = np.nanpercentile(y, [1, 99.5])
+        ax.set_ylim(lo - 0.05 * (hi - lo), hi + 0.1 * (hi - lo))
+        for s in stages:
+            ax.axvline(s["from_step"] / 1e6, color="C3", lw=0.8, ls="--")
+        ax.grid(alpha=0.3)
+    for s in stages:
+        axes[0, 0].text(s["from_step"] / 1e6, axes[0, 0].get_ylim()[1], " " + s["label"], color="C3", fontsize=8,
+                        va="top")
+    for ax in axes[1]:
+        ax.set_xlabel("samples (millions)")
+    fig.suptitle("AMP pedestrian controller: training (training/amp/metrics.jsonl)")
+    fig.tight_layout()
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(args.out, dpi=110)
+    print(args.out)
+
+
+if __name__ == "__main__":
+    main()
