@@ -204,25 +204,26 @@ def throughput(counts: tuple[int, ...] = (1, 2, 4, 8, 16, 32, 64), steps: int = 
 
 
 def record_video(path: str | Path, scene: str = "lobby", n: int = 12, seconds: float = 12.0, seed: int = 0,
-                 policy_dir: str | None = None, size: tuple[int, int] = (640, 400)) -> Path:
-    """An mp4 of an AMP crowd (fixed camera over the scene centre, PyBullet TinyRenderer), 15 fps."""
+                 policy_dir: str | None = None, size: tuple[int, int] = (800, 450), distance: float = 7.0) -> Path:
+    """An mp4 (15 fps) of an AMP crowd: PyBullet TinyRenderer camera 7 m from the crowd's centre,
+    following it smoothly and slowly circling."""
     import cv2
 
     wrapped, env = _make(scene, n, "amp", seconds, seed, policy_dir)
-    xmin, ymin, xmax, ymax = env.scene.bounds
-    centre = [(xmin + xmax) / 2, (ymin + ymax) / 2, 0.5]
-    dist = 0.75 * max(xmax - xmin, ymax - ymin)
     w, h = size
-    view = p.computeViewMatrixFromYawPitchRoll(centre, dist, 30.0, -45.0, 0.0, 2, physicsClientId=env.client)
-    proj = p.computeProjectionMatrixFOV(50.0, w / h, 0.1, 100.0, physicsClientId=env.client)
+    proj = p.computeProjectionMatrixFOV(55.0, w / h, 0.1, 100.0, physicsClientId=env.client)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 15, (w, h))
+    target = env.pos[env.n_robots:].mean(axis=0)
     k = 0
     while not env._needs_reset:
         wrapped.step({})
         k += 1
+        target = 0.97 * target + 0.03 * env.pos[env.n_robots:].mean(axis=0)
         if k % 2 == 0:
+            view = p.computeViewMatrixFromYawPitchRoll([target[0], target[1], 0.6], distance, 20.0 + 1.0 * env.sim_time,
+                                                       -32.0, 0.0, 2, physicsClientId=env.client)
             img = p.getCameraImage(w, h, view, proj, renderer=p.ER_TINY_RENDERER, physicsClientId=env.client)[2]
             rgb = np.asarray(img, dtype=np.uint8).reshape(h, w, 4)[..., :3]
             writer.write(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))

@@ -63,6 +63,7 @@ class AmpHumans:
         # the scene's plane and the robots ignore that box, the humanoids ignore the plane.
         if env.bodies.ground_id is not None:
             self.bodies.exclude_collisions(env.bodies.ground_id)
+        p.changeVisualShape(self.bodies.ground_id, -1, rgbaColor=[0, 0, 0, 0], physicsClientId=self.client)  # the scene's floor shows
         for r in env.robots.ids:
             for link in range(-1, p.getNumJoints(r, physicsClientId=self.client)):
                 p.setCollisionFilterPair(r, self.bodies.ground_id, link, -1, 0, physicsClientId=self.client)
