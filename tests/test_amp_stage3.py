@@ -45,3 +45,22 @@ def test_stage3_replans_from_the_body_and_pushes():
 def test_stage_validation():
     with pytest.raises(ValueError, match="stage"):
         PathTaskConfig(stage=4)
+
+
+def test_obstacle_rays_measure_walls_and_discs():
+    from navzoo.agents.amp.features import N_RAYS, RAY_RANGE, obstacle_observation
+
+    wall = np.array([[[2.0, -5.0], [2.0, 5.0]]])
+    discs = np.array([[0.0, 1.5], [0.0, 0.0]])
+    f = obstacle_observation(np.zeros((1, 2)), np.zeros(1), wall, discs, 0.5, self_disc=np.array([1]))[0]
+    assert f.shape == (N_RAYS,)
+    assert f[0] == pytest.approx(1 - 2.0 / RAY_RANGE)  # straight ahead: the wall at 2 m
+    assert f[1] == pytest.approx(1 - 2.0 / np.cos(2 * np.pi / N_RAYS) / RAY_RANGE)
+    assert f[N_RAYS // 4] == pytest.approx(1 - 1.0 / RAY_RANGE)  # left: the disc's edge at 1 m
+    assert f[N_RAYS // 2] == 0.0  # behind: nothing (its own disc is skipped)
+    # turning the body turns the rays with it
+    g = obstacle_observation(np.zeros((1, 2)), np.array([np.pi / 2]), wall, discs, 0.5, self_disc=np.array([1]))[0]
+    assert g[0] == pytest.approx(1 - 1.0 / RAY_RANGE) and g[-N_RAYS // 4] == pytest.approx(1 - 2.0 / RAY_RANGE)
+    # inside a disc every ray reads 1; far from everything every ray reads 0
+    assert np.all(obstacle_observation(np.array([[0.0, 1.4]]), np.zeros(1), None, discs[:1], 0.5) == 1.0)
+    assert np.all(obstacle_observation(np.array([[50.0, 0.0]]), np.zeros(1), wall, discs, 0.5) == 0.0)
