@@ -124,7 +124,7 @@ def test_follow_scene_counts_trips_and_poses():
     row = pedestrians.follow_scene("lobby", 3, seconds=3.0, seed=0)
     assert row["err_n"] > 0 and 0.0 <= row["err_sum"] / row["err_n"] < 1.0
     assert row["poses"].shape[1] == 45 and len(row["poses"]) > 100
-    assert row["fall"] + row["success"] + row["timeout"] + row["running"] >= 3
+    assert row["fall"] + row["success"] + row["off_path"] + row["timeout"] + row["running"] >= 3
     assert pedestrians.people_per_scene(8) == [3, 5, 6, 8, 10, 12, 13, 15]
 
 
