@@ -35,7 +35,15 @@ def list_scenes() -> list[str]:
 def _load(name: str) -> Scene:
     files = _scene_files()
     if name not in files:
-        raise ValueError(f"unknown scene {name!r}; valid scenes: {', '.join(sorted(files))}")
+        from navzoo.world.procedural import from_name
+
+        scene = from_name(name)
+        if scene is not None:
+            return scene
+        raise ValueError(
+            f"unknown scene {name!r}; valid scenes: {', '.join(sorted(files))} "
+            "(and procedural_rooms_<seed>, procedural_aisles_<seed>)"
+        )
     data = yaml.safe_load(files[name].read_text(encoding="utf-8"))
     if not isinstance(data, dict):
         raise SceneError("expected a mapping at the top level", scene=name)
@@ -48,6 +56,10 @@ def _load(name: str) -> Scene:
 
 def get_scene(name: str) -> Scene:
     """The packaged scene ``name`` (validated, including reachability; cached, immutable).
+
+    Names ``procedural_rooms_<seed>`` and ``procedural_aisles_<seed>`` (``<seed>`` a non-negative integer)
+    give the scenes of :mod:`navzoo.world.procedural` for that seed with default parameters; they are not
+    listed by :func:`list_scenes`.
 
     Raises:
         ValueError: for an unknown name, listing the valid ones.

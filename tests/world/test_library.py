@@ -13,7 +13,7 @@ EXPECTED = {"station", "home", "grocery", "circle_crossing", "square_crossing", 
 
 
 def test_list_and_unknown_names():
-    assert set(list_scenes()) == EXPECTED
+    assert EXPECTED <= set(list_scenes()) and len(list_scenes()) >= 30
     assert list_scenes() == sorted(list_scenes())
     with pytest.raises(ValueError, match="unknown scene 'mall'.*station"):
         get_scene("mall")
