@@ -274,6 +274,48 @@ def evaluate(quick: bool = False, motions: str | None = None, policy_dir: str | 
     return out
 
 
+PAPER = {
+    "tracking": {"mean_pos_error_m": 0.218, "max_pos_error_m": 0.433, "mean_rot_error_rad": 0.343,
+                 "clip_success_rate": 0.646},
+    "following": {"success_rate": 0.7424, "fall_rate": 0.0499, "map_collision_rate": 0.0374,
+                  "agent_collision_rate": 0.1717, "path_error_m": 0.189},
+}
+
+
+def markdown(result: dict[str, Any]) -> str:
+    """Markdown tables of an evaluation result, next to the paper's figures (for docs/pedestrians.md)."""
+    def f(v: Any) -> str:
+        return f"{v:.3f}" if isinstance(v, float) else str(v)
+
+    lines = ["| tracking | navzoo | paper (Isaac Lab, AMASS) |", "|---|---|---|"]
+    for k, ref in PAPER["tracking"].items():
+        lines.append(f"| {k} | {f(result['tracking'][k])} | {ref} |")
+    lines.append(f"| clips | {result['tracking']['n_clips']} | |")
+    lines += ["", "| following | navzoo | paper (SFM+AMP) |", "|---|---|---|"]
+    for k, ref in PAPER["following"].items():
+        lines.append(f"| {k} | {f(result['following'][k])} | {ref} |")
+    fo = result["following"]
+    lines.append(f"| goal_rate / timeout_rate | {f(fo['goal_rate'])} / {f(fo['timeout_rate'])} | |")
+    lines.append(f"| trips (running at the end) | {fo['trips']} ({fo['trips_running']}) | |")
+    lines += ["", "| scene | pedestrians | success | off path | fall | timeout | map contact | agent contact |",
+              "|---|---|---|---|---|---|---|---|"]
+    for r in fo["scenes"]:
+        lines.append(f"| {r['scene']} | {r['pedestrians']} | {r['success']} | {r['off_path']} | {r['fall']} | "
+                     f"{r['timeout']} | {r['map_trips']} | {r['agent_trips']} |")
+    keys = ("coverage_k50", "entropy_k50", "dist_k50", "coverage_k100", "entropy_k100", "dist_k100", "mmd",
+            "n_generated")
+    lines += ["", "| realism | " + " | ".join(keys) + " |", "|---" * (len(keys) + 1) + "|"]
+    for model in ("amp", "kinematic"):
+        lines.append(f"| {model} | " + " | ".join(f(result["realism"][model][k]) for k in keys) + " |")
+    lines.append(f"| reference split-half MMD floor | | | | | | | {f(result['realism']['reference_mmd_floor'])} | |")
+    if "throughput" in result:
+        lines += ["", "| pedestrians | env steps/s | agent steps/s | x real time |", "|---|---|---|---|"]
+        for r in result["throughput"]:
+            lines.append(f"| {r['pedestrians']} | {r['env_steps_per_s']:.1f} | {r['agent_steps_per_s']:.1f} | "
+                         f"{r['realtime_factor']:.2f} |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="navzoo eval pedestrians", description=__doc__.splitlines()[0])
     add_arguments(parser)
@@ -290,9 +332,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=1, help="processes for the scenes of the following run")
     parser.add_argument("--out", default=None, help="also write the JSON result to this file")
     parser.add_argument("--json", action="store_true", help="print JSON")
+    parser.add_argument("--markdown", default=None, metavar="RESULT_JSON",
+                        help="print Markdown tables of an earlier result (--out file) and exit")
 
 
 def run_cli(args: argparse.Namespace) -> int:
+    if args.markdown:
+        print(markdown(json.loads(Path(args.markdown).read_text())))
+        return 0
     result = evaluate(args.quick, args.motions, args.policy, args.seed, args.video, not args.no_throughput,
                       args.workers)
     text = json.dumps(result, indent=None if args.json else 2, default=float)
