@@ -142,8 +142,15 @@ def _pool_map(fn, jobs: list[tuple], workers: int) -> list[Any]:
         return [fn(*j) for j in jobs]
     import multiprocessing as mp
 
-    with mp.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
+    with mp.get_context("spawn").Pool(min(workers, len(jobs)), initializer=_one_thread) as pool:
         return pool.starmap(fn, jobs)
+
+
+def _one_thread() -> None:
+    """Worker processes: one torch thread each (W workers x all-cores torch pools oversubscribe)."""
+    import torch
+
+    torch.set_num_threads(1)
 
 
 def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: int = 0,
