@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -130,6 +131,8 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
                 done[j] = True
         goals = env.goals_reached[h].copy()
     wrapped.close()
+    print(f"following {scene} ({n} pedestrians, {seconds:.0f} s): {ended} in {time.time() - t0:.0f} s",
+          file=sys.stderr, flush=True)
     return {
         "scene": scene, "pedestrians": n, **ended, "map_trips": map_trips, "agent_trips": agent_trips,
         "err_sum": err_sum, "err_n": err_n, "running": int((~done).sum()), "wall_s": round(time.time() - t0, 1),
