@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -48,3 +49,104 @@ def preferred_velocity(pos: np.ndarray, waypoint: np.ndarray, goal: np.ndarray, 
     dist_goal = np.linalg.norm(goal - pos, axis=1)
     speed = v_pref * np.clip(dist_goal / slow_radius, 0.0, 1.0)
     return np.where(dist[:, None] > 1e-6, d / np.maximum(dist, 1e-6)[:, None] * speed[:, None], 0.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Observation-only policies (learned models) behind the same interface.
+
+
+AgentSelector = str | Callable[[str], bool] | None
+
+
+def _selector(agents: AgentSelector) -> Callable[[str], bool]:
+    if agents is None:
+        return lambda a: True
+    if isinstance(agents, str):
+        prefix = agents
+        return lambda a: a.startswith(prefix)
+    if callable(agents):
+        return agents
+    raise TypeError(f"agents must be an agent-name prefix, a predicate or None, got {type(agents).__name__}")
+
+
+def stack_observations(obs: Sequence[Any]) -> Any:
+    """Stack per-agent observations into one batch: arrays along a new axis 0, dicts key by key."""
+    if not obs:
+        raise ValueError("stack_observations needs at least one observation")
+    first = obs[0]
+    if isinstance(first, Mapping):
+        return {k: stack_observations([o[k] for o in obs]) for k in first}
+    return np.stack([np.asarray(o) for o in obs])
+
+
+class ObservationPolicy:
+    """Adapter: a function of observations alone, acting through the :class:`Policy` interface.
+
+    Wraps ``fn(observation) -> action`` (``batched=False``, called once per agent) or
+    ``fn(batch) -> actions`` (``batched=True``: the controlled agents' observations stacked along a
+    new first axis, key by key for Dict observations, and one call per step; ``fn`` returns an
+    ``(n_agents, action_dim)`` array). Observations are passed as the env gives them (flat Box or
+    Dict), so a model trained on ``navzoo.make(...)`` or ``sb3_vec_env`` plugs in unchanged.
+
+    Args:
+        fn: the model's act function (or any callable with the signature above).
+        batched: whether ``fn`` takes a batch (see above).
+        agents: which agents of ``observations`` it acts for: an agent-name prefix (default
+            ``"robot_"``), a predicate on names, or None for all of them. Agents that are not live
+            in ``env`` (when ``env`` is given) are skipped.
+        name: a label for reports.
+    """
+
+    def __init__(self, fn: Callable[[Any], Any], batched: bool = True, agents: AgentSelector = "robot_",
+                 name: str = "observation_policy") -> None:
+        if not callable(fn):
+            raise TypeError(f"fn must be callable, got {type(fn).__name__}")
+        self.fn = fn
+        self.batched = bool(batched)
+        self._select = _selector(agents)
+        self.name = name
+
+    def reset(self, env: NavEnv | None = None) -> None:
+        return None
+
+    def controlled(self, observations: Mapping[str, Any], env: NavEnv | None = None) -> list[str]:
+        """Names of the agents this policy acts for, in ``observations`` order."""
+        live = set(env.agents) if env is not None else None
+        return [a for a in observations if self._select(a) and (live is None or a in live)]
+
+    def act(self, observations: Mapping[str, Any], env: NavEnv | None = None) -> dict[str, np.ndarray]:
+        names = self.controlled(observations, env)
+        if not names:
+            return {}
+        if self.batched:
+            actions = np.asarray(self.fn(stack_observations([observations[a] for a in names])))
+            if actions.ndim == 0 or actions.shape[0] != len(names):
+                raise ValueError(f"batched fn must return one action per agent (first axis {len(names)}), "
+                                 f"got shape {actions.shape}")
+        else:
+            actions = [np.asarray(self.fn(observations[a])) for a in names]
+        return {a: np.asarray(actions[k], dtype=np.float32) for k, a in enumerate(names)}
+
+
+class SB3Policy(ObservationPolicy):
+    """A Stable-Baselines3 model (``model.predict(obs, deterministic=...)``) as a :class:`Policy`.
+
+    All controlled robots are predicted in one batched ``predict`` call. ``obs_transform`` is applied
+    to the stacked batch first (e.g. ``vec_normalize.normalize_obs`` for a model trained under
+    ``VecNormalize``).
+    """
+
+    def __init__(self, model: Any, deterministic: bool = True, agents: AgentSelector = "robot_",
+                 obs_transform: Callable[[Any], Any] | None = None, name: str = "sb3") -> None:
+        if not hasattr(model, "predict"):
+            raise TypeError(f"model must have a predict(obs, deterministic=...) method, got {type(model).__name__}")
+        self.model = model
+        self.deterministic = deterministic
+        self.obs_transform = obs_transform
+        super().__init__(self._predict, batched=True, agents=agents, name=name)
+
+    def _predict(self, batch: Any) -> np.ndarray:
+        if self.obs_transform is not None:
+            batch = self.obs_transform(batch)
+        actions, _ = self.model.predict(batch, deterministic=self.deterministic)
+        return np.asarray(actions)

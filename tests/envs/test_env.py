@@ -227,8 +227,8 @@ def test_reward_terms_match_paper():
 def test_config_validation_messages():
     with pytest.raises(ValueError, match="unknown NavConfig key.*'n_humanz'"):
         NavConfig.from_dict({"n_humanz": 3})
-    with pytest.raises(ValueError, match="n_robots must be an integer >= 1"):
-        NavConfig(n_robots=0)
+    with pytest.raises(ValueError, match="n_robots must be an integer >= 0"):
+        NavConfig(n_robots=-1)
     with pytest.raises(ValueError, match="dt must be a finite number > 0"):
         NavConfig(dt=float("nan"))
     with pytest.raises(ValueError, match="human_speed"):
