@@ -16,6 +16,7 @@ from navzoo import sim
 from navzoo.agents.humanoid import HumanoidBodies
 from navzoo.agents.robot import RobotBodies, command_velocity, wrap_angle
 from navzoo.envs import observations as obs_terms
+from navzoo.envs.amp_humans import PLAN_MARGIN as AMP_PLAN_MARGIN
 from navzoo.envs.amp_humans import AmpHumans
 from navzoo.envs.config import NavConfig
 from navzoo.envs.rewards import TERMS, RewardParams, navigation_reward
@@ -317,8 +318,11 @@ class NavEnv(ParallelEnv):
 
     def _plan(self, i: int, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
         path = None
-        if self.config.path_clearance > 0:
-            padded = float(self.radius[i]) + self.config.path_clearance
+        clearance = self.config.path_clearance
+        if self.config.human_model == "amp" and i >= self.n_robots:
+            clearance += AMP_PLAN_MARGIN
+        if clearance > 0:
+            padded = float(self.radius[i]) + clearance
             path = self._planner(padded).plan(start, goal, spacing=self.config.path_spacing)
         if path is None:
             path = self._planner(float(self.radius[i])).plan(start, goal, spacing=self.config.path_spacing)
