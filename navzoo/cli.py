@@ -1,4 +1,4 @@
-"""The ``navzoo`` command line: demo, scene library, throughput."""
+"""The ``navzoo`` command line: demo, scene library, benchmark and report, throughput."""
 
 from __future__ import annotations
 
@@ -61,6 +61,19 @@ def build_parser() -> argparse.ArgumentParser:
     add_ped_arguments(esub.add_parser(
         "pedestrians", help="AMP pedestrians: clip tracking, trajectory following, motion realism, throughput"))
 
+    bench = sub.add_parser(
+        "benchmark", help="run robot policies over scenes x crowds x densities x episodes (parallel, resumable)",
+        description="Run robot policies over scenes x crowd models x crowd levels x episodes in worker processes; "
+        "every episode is appended to OUT/episodes.jsonl at once, a rerun with the same --out resumes. "
+        "See docs/benchmarks.md.")
+    from navzoo.benchmark.runner import add_arguments as add_benchmark_arguments
+
+    add_benchmark_arguments(bench)
+    report = sub.add_parser("report", help="tables (md, csv), HTML page with plots and JSON of a benchmark run")
+    from navzoo.benchmark.report import add_arguments as add_report_arguments
+
+    add_report_arguments(report)
+
     speed = sub.add_parser("speed", help="env throughput with kinematic crowds and its overhead over PyBullet")
     speed.add_argument("--humans", type=_int_list, default=[5, 20, 64], help="crowd sizes (default 5,20,64)")
     speed.add_argument("--steps", type=int, default=200)
@@ -84,6 +97,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _scenes(args)
         if args.command == "speed":
             return _speed(args)
+        if args.command == "benchmark":
+            from navzoo.benchmark.runner import run_cli as run_benchmark_cli
+
+            return run_benchmark_cli(args)
+        if args.command == "report":
+            from navzoo.benchmark.report import run_cli as run_report_cli
+
+            return run_report_cli(args)
         if args.command == "motions":
             return _motions(args, parser)
         if args.command == "train":

@@ -1,0 +1,110 @@
+"""Benchmark reports: Markdown, CSV, HTML with plots and videos, JSON with the METRICS.md names."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from navzoo.benchmark.report import SCENE_GROUPS, build_report, scene_group, summarize
+from navzoo.benchmark.runner import load_episodes, resolve_spec, run_benchmark
+from navzoo.cli import main
+
+# The names `navzoo report --json` must give every method x cell (METRICS.md / docs/metrics.md).
+REQUIRED = ("success_rate", "collision_rate", "timeout_rate", "human_collision_rate", "obstacle_collision_rate",
+            "stuck_rate", "nav_time_s", "path_length_m", "path_length_ratio", "spl", "extra_time_s", "mean_speed",
+            "max_accel", "mean_jerk", "heading_change_rad", "path_irregularity", "min_distance_m",
+            "discomfort_frequency", "discomfort_mean_min_gap_m", "proxemic_intimate", "proxemic_personal",
+            "proxemic_social", "intrusion_time_ratio", "min_ttc_s", "ttc_below_1s", "personal_space_cost",
+            "disturbance_lateral_m", "disturbance_velocity_loss_mps", "social_work")
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory) -> Path:
+    """2 scenes (two groups; the flat gets 0 and 1 people) x 2 densities x 2 methods x 2 episodes, in-process."""
+    out = tmp_path_factory.mktemp("report") / "run"
+    spec, _ = resolve_spec(scenes="corridor,studio_flat", methods="orca,pure-pursuit", density="0.02,0.05",
+                           episodes=2, max_steps=10, save_trajectories=1, videos=1)
+    summary = run_benchmark(spec, out, workers=0, progress=False)
+    assert summary["status"] == "complete" and not summary["errors"], summary["errors"]
+    # one unresolved failure, as a crashed episode leaves it
+    err = {"method": "orca", "scene": "corridor", "crowd": "sfm", "level": "d0.05", "n_humans": 3, "episode": 9,
+           "seed": 1, "type": "RuntimeError", "message": "boom", "traceback": "Traceback ...\nRuntimeError: boom"}
+    with open(out / "errors.jsonl", "a") as f:
+        f.write(json.dumps(err) + "\n")
+    return out
+
+
+@pytest.fixture(scope="module")
+def report(run_dir) -> dict:
+    return build_report(run_dir)
+
+
+def test_every_library_scene_has_a_group():
+    from navzoo.world.library import list_scenes
+
+    assert {scene_group(s) for s in list_scenes()} <= set(SCENE_GROUPS)
+    assert scene_group("procedural_rooms_3") == "procedural" and scene_group("my_scene.yaml") == "other"
+
+
+def test_report_writes_markdown_csv_html_json(run_dir, report):
+    rep = run_dir / "report"
+    for name in ("report.md", "report.html", "report.json", "groups.csv", "cells.csv", "overall.csv"):
+        assert (rep / name).is_file() and (rep / name).stat().st_size > 0, name
+    md = (rep / "report.md").read_text()
+    assert "## All scenes" in md and "## homes (studio_flat)" in md and "## primitives (corridor)" in md
+    assert "| orca | sfm | 0.02 /m² | 4 |" in md and "## Failed episodes" in md and "boom" in md
+    html = (rep / "report.html").read_text()
+    for fig in report["figures"] + report["trajectory_plots"]:
+        assert f"src='{fig['file']}'" in html and (rep / fig["file"]).stat().st_size > 5000
+    assert {Path(f["file"]).name for f in report["figures"]} == {"metric_bars.png", "group_bars.png",
+                                                                 "density_sweep_sfm.png"}
+    assert len(report["trajectory_plots"]) == 4  # one per scene x level (episode 0 saved), both methods on it
+    assert len(report["videos"]) == 8
+    for v in report["videos"]:
+        assert f"href='{v['video']}'" in html and (rep / v["video"]).is_file() and (rep / v["poster"]).is_file()
+    with open(rep / "groups.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 2 * 2 * 2  # method x group x level
+    assert {"method", "group", "crowd", "level", "n_episodes", "success_rate", "success_rate_ci95"} <= set(rows[0])
+
+
+def test_json_numbers_match_the_episodes(run_dir, report):
+    recs = load_episodes(run_dir)
+    assert report["n_episodes"] == len(recs) == 16 and report["n_errors"] == 1
+    assert report["errors"][0]["message"] == "boom" and "traceback" not in report["errors"][0]
+    assert len(report["cells"]) == 2 * 2 * 2
+    for cell in report["cells"]:
+        for name in REQUIRED:
+            assert name in cell and name in cell["ci95"], name
+        mine = [r for r in recs if all(r[k] == cell[k] for k in ("method", "scene", "crowd", "level"))]
+        assert cell["n_episodes"] == len(mine) == 2
+        assert cell["success_rate"] == pytest.approx(np.mean([r["success"] for r in mine]))
+        assert cell["timeout_rate"] == pytest.approx(np.mean([r["timeout"] for r in mine]))
+        assert cell["path_length_m"] == pytest.approx(np.mean([r["path_length_m"] for r in mine]))
+        steps = sum(r["total_steps"] for r in mine)
+        assert cell["discomfort_frequency"] == pytest.approx(sum(r["discomfort_steps"] for r in mine) / steps)
+    empty = [c for c in report["cells"] if c["scene"] == "studio_flat" and c["level"] == "d0.02"]
+    assert all(c["n_humans"] == 0 and c["min_distance_m"] is None for c in empty)  # no people: undefined
+    assert {r["method"] for r in report["overall"]} == {"orca", "pure-pursuit"}
+    assert report["methods"] == ["orca", "pure-pursuit"]
+
+
+def test_summarize_groups_and_sorts():
+    recs = [{"method": "b", "scene": "home", "crowd": "sfm", "level": lv, "success": s, "nav_time_s": t,
+             "time_limit_s": 20.0} for lv, s, t in (("d0.3", True, 10.0), ("d0.05", False, None), ("d0.05", True, 8.0))]
+    rows = summarize(recs, ("method", "group", "level"))
+    assert [r["level"] for r in rows] == ["d0.05", "d0.3"] and rows[0]["group"] == "homes"
+    assert rows[0]["success_rate"] == 0.5 and rows[0]["nav_time_s"] == 8.0 and rows[0]["n"]["nav_time_s"] == 1
+
+
+def test_report_cli_json(run_dir, tmp_path, capsys):
+    assert main(["report", str(run_dir), "--json", "--no-plots", "--out", str(tmp_path / "r")]) == 0
+    data = json.loads(capsys.readouterr().out)  # stdout is exactly one JSON object
+    assert (tmp_path / "r" / "report.md").is_file()
+    cell = data["cells"][0]
+    assert {"method", "scene", "group", "crowd", "level", "n_episodes", "ci95"} <= set(cell)
+    assert all(name in cell for name in REQUIRED)
