@@ -32,7 +32,10 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--scene", default=None, help="scene name (see `navzoo scenes`) or a scene file; default lobby")
     demo.add_argument("--out", default="runs/demo", help="output folder (default runs/demo)")
     demo.add_argument("--seed", type=int, default=0)
-    demo.add_argument("--policy", default="orca", choices=["orca", "pure_pursuit"], help="baseline robot controller")
+    from navzoo.agents.baselines import policy_names
+
+    demo.add_argument("--policy", default="orca",
+                      help=f"baseline robot controller: {', '.join(policy_names())} (default orca)")
     demo.add_argument("--humans", type=int, default=None, help="number of pedestrians (default: the scene's)")
     demo.add_argument("--no-video", action="store_true", help="skip the video")
     demo.add_argument("--json", action="store_true", help="print the metrics as one JSON object on stdout")

@@ -10,11 +10,10 @@ from typing import Any
 import cv2
 import numpy as np
 
-from navzoo.agents.baselines import OrcaRobotPolicy, PurePursuitPolicy
+from navzoo.agents.baselines import make_policy
 from navzoo.benchmark.metrics import episode_summary
 from navzoo.envs.registry import SCENARIOS, make
 
-ROBOT_POLICIES = {"orca": OrcaRobotPolicy, "pure_pursuit": PurePursuitPolicy}
 DEFAULT_SCENE = "lobby"
 
 
@@ -39,8 +38,7 @@ def run_demo(
 
     Returns the metrics dict (also written to ``metrics.json``) with the output paths under ``files``.
     """
-    if policy not in ROBOT_POLICIES:
-        raise ValueError(f"unknown robot policy {policy!r}; choose from {sorted(ROBOT_POLICIES)}")
+    robot = make_policy(policy)  # raises naming the valid baselines
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     env_id = scene_to_env_id(scene)
@@ -49,7 +47,6 @@ def run_demo(
         overrides["n_humans"] = n_humans
     env = make(env_id, render_mode="rgb_array", render_view="both" if camera else "topdown", **overrides)
     nav = env.unwrapped
-    robot = ROBOT_POLICIES[policy]()
     obs, _ = env.reset(seed=seed)
     robot.reset(nav)
     R = nav.n_robots
