@@ -26,8 +26,7 @@ from navzoo.agents.amp.features import (
     N_RAYS,
     heading,
     obstacle_observation,
-    self_observation,
-    task_observation,
+    policy_observation,
 )
 from navzoo.agents.amp.sim import ACTION_DIM, PhysicsHumanoids, actions_to_targets
 from navzoo.agents.orca import OrcaParams, orca_velocities
@@ -158,13 +157,12 @@ class AmpHumans:
         """(H, OBS_DIM) float32: the AMP controller's input of every pedestrian."""
         s = self.state()
         env = self.env
-        task = task_observation(s["root_pos"], s["root_quat"], self.waypoints())
         others = np.flatnonzero(env.alive | ~env.is_robot)  # live robots and every person (fallen ones lie there)
         own = np.full(env.n_total, -1)
         own[others] = np.arange(others.size)
         rays = obstacle_observation(s["root_pos"][:, :2], heading(s["root_quat"]), env.segments, env.pos[others],
                                     env.radius[others], self_disc=own[env.n_robots:])
-        return np.concatenate([self_observation(s), task, rays], axis=1).astype(np.float32)
+        return policy_observation(s, self.waypoints(), rays)
 
     def set_actions(self, actions: np.ndarray) -> None:
         sph, rev = actions_to_targets(np.clip(np.asarray(actions, dtype=np.float64), -1.0, 1.0))

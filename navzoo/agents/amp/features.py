@@ -402,3 +402,12 @@ def obstacle_observation(
             hit &= ~mask[:, None, :]
         best = np.minimum(best, np.where(hit, t, RAY_RANGE).min(axis=-1))
     return 1.0 - best / RAY_RANGE
+
+
+def policy_observation(state: dict[str, np.ndarray], waypoints: np.ndarray, rays: np.ndarray | None = None) -> np.ndarray:
+    """The controller's input (N, 105 + 2K [+ N_RAYS]) float32: self-observation, the K target points
+    in the heading frame and, for obstacle-aware policies, the rays of :func:`obstacle_observation`."""
+    parts = [self_observation(state), task_observation(state["root_pos"], state["root_quat"], waypoints)]
+    if rays is not None:
+        parts.append(rays)
+    return np.concatenate(parts, axis=1).astype(np.float32)

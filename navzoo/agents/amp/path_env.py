@@ -34,11 +34,10 @@ from navzoo.agents.amp.features import (
     amp_features,
     heading,
     obstacle_observation,
+    policy_observation,
     quat_mul,
     quat_rotate,
     reference_features,
-    self_observation,
-    task_observation,
     yaw_quat,
 )
 from navzoo.agents.amp.sim import ACTION_DIM, PhysicsHumanoids, actions_to_targets
@@ -357,13 +356,12 @@ class AmpPathEnv:
     def _observe(self, state: dict[str, np.ndarray]) -> np.ndarray:
         steps = self.t[:, None] + self._wp_stride * np.arange(1, self.cfg.n_waypoints + 1)[None, :]
         wp = np.take_along_axis(self.paths, np.minimum(steps, self._path_len - 1)[..., None], axis=1)
-        task = task_observation(state["root_pos"], state["root_quat"], wp)
-        parts = [self_observation(state), task]
+        rays = None
         if self.cfg.obstacle_obs:
             root = state["root_pos"][:, :2]
-            parts.append(obstacle_observation(root, heading(state["root_quat"]), self._segments, root, 0.3,
-                                              self_disc=np.arange(self.num_envs)))
-        return np.concatenate(parts, axis=1).astype(np.float32)
+            rays = obstacle_observation(root, heading(state["root_quat"]), self._segments, root, 0.3,
+                                        self_disc=np.arange(self.num_envs))
+        return policy_observation(state, wp, rays)
 
     def reset(self, seed: int | None = None) -> np.ndarray:
         if seed is not None:

@@ -75,8 +75,7 @@ from navzoo.agents.amp.features import (
     N_RAYS,
     heading,
     obstacle_observation,
-    self_observation,
-    task_observation,
+    policy_observation,
 )
 from navzoo.agents.amp.path_env import PathTaskConfig
 from navzoo.agents.amp.sim import PhysicsHumanoids, actions_to_targets
@@ -283,12 +282,11 @@ def _track_batch(
         for step in range(1, max_steps + 1):
             t = step - 1  # the observation at time t looks at the path points t + stride * j
             wp = paths[:, np.minimum(t + wp_offsets, path_len - 1)]
-            parts = [self_observation(state), task_observation(state["root_pos"], state["root_quat"], wp)]
+            rays = None
             if getattr(policy, "obs_dim", 0) == _base_obs_dim(cfg) + N_RAYS:  # obstacle rays: open ground
                 root = state["root_pos"][:, :2]
-                parts.append(obstacle_observation(root, heading(state["root_quat"]), None, root, 0.3,
-                                                  self_disc=np.arange(n)))
-            obs = np.concatenate(parts, axis=1).astype(np.float32)
+                rays = obstacle_observation(root, heading(state["root_quat"]), None, root, 0.3, self_disc=np.arange(n))
+            obs = policy_observation(state, wp, rays)
             sph, rev = actions_to_targets(np.clip(np.asarray(policy(obs), dtype=np.float64), -1.0, 1.0))
             bodies.apply_targets(sph, rev)
             bodies.step()
