@@ -13,7 +13,6 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from navzoo.agents.orca import OrcaParams, orca_velocities
-from navzoo.agents.policy import preferred_velocity
 from navzoo.agents.sfm import SocialForceParams, social_force_velocities
 
 if TYPE_CHECKING:
@@ -57,7 +56,7 @@ class CrowdPolicy:
         if h.size == 0:
             return np.zeros((0, 2))
         pos, vel, rad = env.pos[h], env.vel[h], env.radius[h]
-        pref = preferred_velocity(pos, env.next_waypoints()[h], env.goal[h], env.v_pref[h])
+        pref = env.human_preferred_velocity()  # toward the next A* waypoint, with turn-taking
         vmax = np.full(h.size, env.config.human_max_speed)
         robots = np.flatnonzero(env.alive[:R]) if self.see_robots else np.zeros(0, dtype=int)
         if self.model == "sfm":

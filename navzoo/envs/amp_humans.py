@@ -137,6 +137,8 @@ class AmpHumans:
                     wp_index[j] += 1
             wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in range(self.n)])
             pref = preferred_velocity(pos, wp, goal, v_pref)
+            if env.turn_taking is not None:  # yields in progress shape the rollout ahead
+                pref = env.turn_taking.apply(env.sim_time + k * PLAN_DT, pref)
             o_pos = r_pos + (k * PLAN_DT) * r_vel
             if env.config.crowd_model == "sfm":
                 vel = social_force_velocities(pos, vel, pref, rad, vmax, PLAN_DT, self.sfm, env.segments,

@@ -38,6 +38,10 @@ class NavConfig:
             force), ``"orca"`` (navzoo's ORCA) or ``"orca_rvo2"`` (ORCA with RVO2's exact
             semantics, as CrowdNav's pedestrians).
         humans_see_robots: whether pedestrians react to robots (off = CrowdNav's invisible robot).
+        human_yielding: turn-taking in bottlenecks: a pedestrian stuck face to face with another
+            steps back and waits (:mod:`navzoo.agents.yielding`), so opposite flows through a door
+            do not freeze. Works with every crowd model, for kinematic and AMP pedestrians; off in the
+            CrowdNav presets, whose pedestrians are RVO2's as published.
         human_radius: pedestrians' disc radius for collisions and observations (m).
         human_body_contacts: also count PyBullet contacts between a robot and a humanoid's limbs
             as collisions (a walking humanoid's hands and feet reach up to ~0.1 m beyond a 0.3 m
@@ -77,6 +81,7 @@ class NavConfig:
     human_model: HumanModel = "kinematic"
     crowd_model: CrowdModel = "sfm"
     humans_see_robots: bool = True
+    human_yielding: bool = True
     human_radius: float = 0.3
     human_body_contacts: bool = True
     human_speed: tuple[float, float] = (1.0, 1.4)
@@ -127,6 +132,8 @@ class NavConfig:
             raise bad("crowd_model", "'sfm', 'orca' or 'orca_rvo2'")
         if not isinstance(self.humans_see_robots, bool):
             raise bad("humans_see_robots", "a bool")
+        if not isinstance(self.human_yielding, bool):
+            raise bad("human_yielding", "a bool")
         if self.human_at_goal not in ("new_goal", "stop"):
             raise bad("human_at_goal", "'new_goal' or 'stop'")
         if not isinstance(self.human_body_contacts, bool):

@@ -14,7 +14,9 @@ from pettingzoo import ParallelEnv
 
 from navzoo import sim
 from navzoo.agents.humanoid import HumanoidBodies
+from navzoo.agents.policy import preferred_velocity
 from navzoo.agents.robot import RobotBodies, command_velocity, wrap_angle
+from navzoo.agents.yielding import TurnTaking
 from navzoo.envs import observations as obs_terms
 from navzoo.envs.amp_humans import PLAN_MARGIN as AMP_PLAN_MARGIN
 from navzoo.envs.amp_humans import AmpHumans
@@ -272,6 +274,7 @@ class NavEnv(ParallelEnv):
         self.events: dict[str, str] = {}
         self.goals_reached = np.zeros(N, dtype=int)
         self.arrived = np.zeros(N, dtype=bool)  # pedestrians done for good (human_at_goal="stop")
+        self.turn_taking = TurnTaking(H) if cfg.human_yielding else None
 
         self.robots.reset(self.pos[:R], self.yaw[:R])
         self.human_fallen = np.zeros(H, dtype=bool)
@@ -423,9 +426,15 @@ class NavEnv(ParallelEnv):
         d_obs = self._clearance()
         human_reached = self._retarget_humans()
         reached[R:] = human_reached
+        new_yields = np.zeros(hum.size, dtype=bool)
+        if self.turn_taking is not None and hum.size:
+            new_yields = self.turn_taking.update(
+                self.sim_time + dt, dt, self.pos[hum], self.vel[hum], self.human_preferred_velocity(yielding=False),
+                active=~self.human_fallen & ~self.arrived[hum],
+            )
         if self.amp is not None and hum.size:
             amp_terms = self.amp.task_reward()
-            self.amp.after_step(replan=bool(human_reached.any()))
+            self.amp.after_step(replan=bool(human_reached.any() or new_yields.any()))
         # After a re-target a pedestrian's distance jumps to its new goal: that step earns the goal
         # reward, not a progress penalty, so its previous distance is taken as the new one.
         d_prev = np.where(human_reached_mask(self.n_total, R, human_reached), self.d_goal, d_goal_prev)
@@ -615,6 +624,16 @@ class NavEnv(ParallelEnv):
             path = self.paths[i]
             while self.wp_index[i] < len(path) - 1 and np.linalg.norm(path[self.wp_index[i]] - self.pos[i]) < tol:
                 self.wp_index[i] += 1
+
+    def human_preferred_velocity(self, yielding: bool = True, t: float | None = None) -> np.ndarray:
+        """(H, 2) pedestrians' preferred velocities: toward the next A* waypoint at their preferred
+        speed, slowing near the goal, with turn-taking (``NavConfig.human_yielding``) applied at
+        time ``t`` (default: now) unless ``yielding`` is False."""
+        h = np.arange(self.n_robots, self.n_total)
+        pref = preferred_velocity(self.pos[h], self.next_waypoints()[h], self.goal[h], self.v_pref[h])
+        if yielding and self.turn_taking is not None:
+            pref = self.turn_taking.apply(self.sim_time if t is None else t, pref)
+        return pref
 
     def _retarget_humans(self) -> np.ndarray:
         """Give pedestrians that reached their goal a new goal and path; returns who reached."""

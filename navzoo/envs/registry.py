@@ -23,7 +23,7 @@ from navzoo.envs.wrappers import FrozenAgents
 _CROWDNAV = dict(
     human_body_contacts=False, human_at_goal="stop",
     robot=RobotSpec(kinematics="holonomic", max_accel=100.0, max_ang_accel=100.0, max_turn_rate=8.0),
-    crowd_model="orca_rvo2", humans_see_robots=False, human_speed=(1.0, 1.0), dt=0.25, time_limit=25.0,
+    crowd_model="orca_rvo2", humans_see_robots=False, human_yielding=False, human_speed=(1.0, 1.0), dt=0.25, time_limit=25.0,
 )
 
 SCENARIOS: dict[str, dict[str, Any]] = {

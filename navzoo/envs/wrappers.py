@@ -58,6 +58,9 @@ class FrozenAgents(_NavWrapper):
     def __init__(self, env: ParallelEnv, frozen: Iterable[str] | Callable[[str], bool], policy: Policy) -> None:
         super().__init__(env)
         names = list(env.possible_agents)
+        if isinstance(frozen, str):
+            raise TypeError(f"frozen must be agent names or a predicate, got the string {frozen!r}; "
+                            f"e.g. [{frozen!r}] or lambda a: a.startswith({frozen!r})")
         if callable(frozen):
             self.frozen = frozenset(a for a in names if frozen(a))
         else:
