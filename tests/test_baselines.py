@@ -24,7 +24,7 @@ from navzoo.envs.wrappers import FrozenAgents, SingleRobotEnv
 
 
 def _kinematics_of(name: str) -> str:
-    return "holonomic" if name.endswith("holonomic") else "diff_drive"
+    return "holonomic" if name.endswith("holonomic") or name == "orca-crowdnav" else "diff_drive"
 
 
 def _run(env, policy, steps: int | None = None, options=None, seed: int = 0, check=None):
@@ -308,3 +308,29 @@ def test_sb3_adapter_with_dict_observations():
         np.testing.assert_allclose(actions[a], model.predict(obs[a], deterministic=True)[0], rtol=1e-5, atol=1e-6)
     env.close()
     single.close()
+
+
+def test_orca_crowdnav_is_rvo2_with_crowdnav_margins():
+    pol = make_policy("orca-crowdnav")
+    assert isinstance(pol, OrcaRobotPolicy) and pol.crowdnav and pol.kinematics == "holonomic"
+    assert pol.params.right_bias == 0.0 and pol.params.one_step_safety is False
+    with pytest.raises(ValueError, match="radius margin"):
+        OrcaRobotPolicy(crowdnav=True, radius_margin=0.1)
+    # A person standing on the robot's straight path: navzoo's holonomic ORCA passes at the sum of
+    # radii (0.6 m), CrowdNav's (discs 0.01 m larger each) keeps 2 cm more.
+    env = navzoo.make("navzoo/CircleCrossing-v0", n_humans=1, raw=True)
+    gaps = {}
+    for name in ("orca-holonomic", "orca-crowdnav"):
+        env.reset(seed=0, options={"robot_starts": [[0.0, -2.0]], "robot_goals": [[0.0, 4.0]],
+                                   "human_starts": [[0.0, 0.0]], "human_goals": [[0.0, 0.0]]})
+        p = make_policy(name)
+        p.reset(env)
+        d = np.inf
+        for _ in range(40):
+            env.step({**p.act({"robot_0": None}, env), "human_0": np.zeros(2, dtype=np.float32)})
+            d = min(d, float(np.linalg.norm(env.pos[0] - env.pos[1])))
+            if not env.agents or "robot_0" not in env.agents:
+                break
+        gaps[name] = d
+    assert gaps["orca-crowdnav"] > gaps["orca-holonomic"] + 0.01, gaps
+    env.close()

@@ -92,10 +92,10 @@ def test_episode_seed_depends_on_the_cell_and_index_only():
 def test_crowdnav_protocol_is_the_registry_preset(tmp_path):
     import navzoo
 
-    spec, _ = resolve_spec(protocol="crowdnav-circle", methods="orca-holonomic")
+    spec, _ = resolve_spec(protocol="crowdnav-circle", methods="orca-crowdnav")
     assert spec.scenes == ("circle_crossing",) and spec.crowds == ("orca_rvo2",) and spec.humans == (5,)
     assert spec.episodes == 500 and spec.time_limit == 25.0
-    assert resolve_spec(protocol="crowdnav-circle", methods="orca-holonomic", episodes=7)[0].episodes == 7
+    assert resolve_spec(protocol="crowdnav-circle", methods="orca-crowdnav", episodes=7)[0].episodes == 7
     task = build_tasks(spec, tmp_path)[0]
     mine = navzoo.make(None, **task.env_kwargs).unwrapped.config
     preset = navzoo.make("navzoo/CircleCrossing-v0", n_humans=5).unwrapped.config

@@ -101,20 +101,30 @@ class OrcaRobotPolicy:
         wall_filter: differential drive: scale the forward speed down where driving along the
             current heading (rather than along the ORCA velocity) would hit a wall
             (:func:`navzoo.agents.dwa.obstacle_speed_filter`).
+        crowdnav: CrowdNav's ORCA robot exactly (``crowd_sim/envs/policy/orca.py``, registered as
+            ``"orca-crowdnav"``): RVO2 semantics (``params`` default without navzoo's right bias and
+            one-step safety), every disc, the robot's and the people's, 0.01 m larger inside ORCA,
+            people given zero preferred velocity and the robot's maximum speed, slowing down within
+            1 m of the goal. Its success and
+            collision rates on the ``crowdnav-circle`` protocol are the ones to compare with
+            CrowdNav's published ORCA row (docs/benchmarks.md).
     """
 
     name = "orca"
 
     def __init__(self, params: OrcaParams | None = None, kinematics: str | None = None,
-                 radius_margin: float | None = None, wall_filter: bool = True) -> None:
+                 radius_margin: float | None = None, wall_filter: bool = True, crowdnav: bool = False) -> None:
         if kinematics not in (None, "diff_drive", "holonomic"):
             raise ValueError(f"kinematics must be None, 'diff_drive' or 'holonomic', got {kinematics!r}")
         if radius_margin is not None and not (np.isfinite(radius_margin) and radius_margin >= 0):
             raise ValueError(f"radius_margin must be None or a finite number >= 0, got {radius_margin!r}")
-        self.params = params or OrcaParams()
+        if crowdnav and radius_margin is not None:
+            raise ValueError("crowdnav=True fixes the radius margin (0.01 m on every disc); leave radius_margin None")
+        self.params = params or (OrcaParams(right_bias=0.0, one_step_safety=False) if crowdnav else OrcaParams())
         self.kinematics = kinematics
         self.radius_margin = radius_margin
         self.wall_filter = wall_filter
+        self.crowdnav = bool(crowdnav)
 
     def reset(self, env: NavEnv) -> None:
         _check_kinematics(self.kinematics, env, "orca")
@@ -131,10 +141,16 @@ class OrcaRobotPolicy:
         others = _others(env, idx)
         order = np.concatenate([idx, others])
         wp = env.next_waypoints()[idx]
-        pref = preferred_velocity(env.pos[idx], wp, env.goal[idx], env.v_pref[idx])
-        all_pref = np.concatenate([pref, env.vel[others]])
-        vmax = np.where(env.is_robot[order], spec.max_speed, env.config.human_max_speed)
-        radius = env.radius[order] + np.where(np.arange(order.size) < idx.size, margin, 0.0)
+        pref = preferred_velocity(env.pos[idx], wp, env.goal[idx], env.v_pref[idx],
+                                  slow_radius=1.0 if self.crowdnav else 0.5)
+        if self.crowdnav:  # CrowdNav: one RVO2 simulator, every agent at radius + 0.01, others' goals unknown
+            all_pref = np.concatenate([pref, np.zeros((others.size, 2))])
+            vmax = np.full(order.size, spec.max_speed)
+            radius = env.radius[order] + 0.01
+        else:
+            all_pref = np.concatenate([pref, env.vel[others]])
+            vmax = np.where(env.is_robot[order], spec.max_speed, env.config.human_max_speed)
+            radius = env.radius[order] + np.where(np.arange(order.size) < idx.size, margin, 0.0)
         desired = orca_velocities(env.pos[order], env.vel[order], all_pref, radius, vmax, env.config.dt,
                                   self.params, env.segments, n_active=idx.size)
         return _to_actions(env, idx, desired, self.wall_filter)
@@ -218,6 +234,7 @@ _REGISTRY: dict[str, Callable[..., Policy]] = {
     "orca": lambda **kw: OrcaRobotPolicy(**kw),
     "orca-holonomic": lambda **kw: OrcaRobotPolicy(kinematics="holonomic", **kw),
     "orca-diffdrive": lambda **kw: OrcaRobotPolicy(kinematics="diff_drive", **kw),
+    "orca-crowdnav": lambda **kw: OrcaRobotPolicy(kinematics="holonomic", crowdnav=True, **kw),
     "sfm": lambda **kw: SocialForceRobotPolicy(**kw),
     "dwa": lambda **kw: DWAPolicy(**kw),
     "dwa-holonomic": lambda **kw: DWAPolicy(kinematics="holonomic", **kw),

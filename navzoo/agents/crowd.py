@@ -25,7 +25,8 @@ class CrowdPolicy:
     Args:
         model: ``"sfm"``, ``"orca"`` (navzoo's ORCA: keep-right bias and one-step safety, see
             docs/crowd_models.md) or ``"orca_rvo2"`` (the same solver with RVO2's exact
-            semantics, as CrowdNav's pedestrians).
+            semantics and CrowdNav's settings: maximum speed = preferred speed, discs 0.01 m larger
+            inside ORCA, slowing down within 1 m of the goal, as CrowdNav's pedestrians).
         see_robots: whether people react to robots (False = CrowdNav's invisible robot).
         sfm_params / orca_params: model parameters.
     """
@@ -56,7 +57,8 @@ class CrowdPolicy:
         if h.size == 0:
             return np.zeros((0, 2))
         pos, vel, rad = env.pos[h], env.vel[h], env.radius[h]
-        pref = env.human_preferred_velocity()  # toward the next A* waypoint, with turn-taking
+        # Toward the next A* waypoint, with turn-taking; CrowdNav's people slow down within 1 m of the goal.
+        pref = env.human_preferred_velocity(slow_radius=1.0 if self.model == "orca_rvo2" else 0.5)
         vmax = np.full(h.size, env.config.human_max_speed)
         robots = np.flatnonzero(env.alive[:R]) if self.see_robots else np.zeros(0, dtype=int)
         if self.model == "sfm":
@@ -65,6 +67,9 @@ class CrowdPolicy:
                 others_pos=env.pos[robots], others_vel=env.vel[robots], others_radius=env.radius[robots],
                 segment_groups=env.segment_groups,
             )
+        if self.model == "orca_rvo2":  # CrowdNav's people: RVO2 agents of max speed v_pref, discs + 0.01 m
+            vmax = env.v_pref[h].copy()
+            rad = rad + 0.01
         all_pos = np.concatenate([pos, env.pos[robots]])
         all_vel = np.concatenate([vel, env.vel[robots]])
         all_pref = np.concatenate([pref, env.vel[robots]])

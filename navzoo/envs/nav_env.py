@@ -625,12 +625,14 @@ class NavEnv(ParallelEnv):
             while self.wp_index[i] < len(path) - 1 and np.linalg.norm(path[self.wp_index[i]] - self.pos[i]) < tol:
                 self.wp_index[i] += 1
 
-    def human_preferred_velocity(self, yielding: bool = True, t: float | None = None) -> np.ndarray:
+    def human_preferred_velocity(self, yielding: bool = True, t: float | None = None,
+                                 slow_radius: float = 0.5) -> np.ndarray:
         """(H, 2) pedestrians' preferred velocities: toward the next A* waypoint at their preferred
-        speed, slowing near the goal, with turn-taking (``NavConfig.human_yielding``) applied at
-        time ``t`` (default: now) unless ``yielding`` is False."""
+        speed, slowing down linearly within ``slow_radius`` of the goal, with turn-taking
+        (``NavConfig.human_yielding``) applied at time ``t`` (default: now) unless ``yielding`` is False."""
         h = np.arange(self.n_robots, self.n_total)
-        pref = preferred_velocity(self.pos[h], self.next_waypoints()[h], self.goal[h], self.v_pref[h])
+        pref = preferred_velocity(self.pos[h], self.next_waypoints()[h], self.goal[h], self.v_pref[h],
+                                  slow_radius=slow_radius)
         if yielding and self.turn_taking is not None:
             pref = self.turn_taking.apply(self.sim_time if t is None else t, pref)
         return pref

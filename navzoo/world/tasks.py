@@ -177,7 +177,7 @@ class TaskSampler:
         existing_radii: ArrayLike | None = None,
         existing_goals: ArrayLike | None = None,
         goal_separation: float = 0.0,
-        margin: float = 0.1,
+        margin: float | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Sample ``n`` start/goal pairs for agents of ``kind``.
 
@@ -195,7 +195,8 @@ class TaskSampler:
                 ``goal_separation`` to them.
             goal_separation: regions protocol: minimum distance between goals (new and existing); 0 allows
                 several agents to share a destination area freely.
-            margin: clearance added to the sum of radii for start separation (metres).
+            margin: clearance added to the sum of radii for start separation (metres); ``None``: 0.2 m
+                in the crossing protocols (CrowdNav's discomfort distance), else 0.1 m.
 
         Returns:
             ``(starts (n, 2), goals (n, 2))`` float64 arrays.
@@ -217,6 +218,9 @@ class TaskSampler:
             raise ValueError(f"kind must be one of {_KINDS}, got {kind!r}")
         n = int(n)
         r = self.agent_radius
+        if margin is None:
+            crossing = self.scene.protocol is not None and self.scene.protocol.type in ("circle_crossing", "square_crossing")
+            margin = 0.2 if crossing else 0.1
         sep = 2.0 * r + margin if min_separation is None else float(min_separation)
         ex_pos = np.zeros((0, 2)) if existing_positions is None else geo.as_points(existing_positions)
         if ex_pos.shape[0] == 0:
