@@ -7,6 +7,8 @@
 # 15 worker processes x 16 humanoids with the networks on the GPU, and writes the new checkpoint to
 # $OUT split in 15 MiB parts (the device tool returns files of at most 16 MiB), with metrics.jsonl and
 # the log. Copy those files back into training/amp to continue in a later session.
+# RESET_DISC=1: resume with a fresh discriminator (needed once when the discriminator inputs changed meaning,
+# e.g. from checkpoint 3315 to the finite-difference / grounded inputs); TRAIN_ARGS: more train.py flags.
 set -u
 python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/*.whl 2>&1 | grep -v "already exists" | tail -2
 export PYTHONPATH=/tmp/site:$PWD
@@ -24,7 +26,8 @@ if [ -f "$RESUME_DIR/name" ]; then
 fi
 timeout "${TRAIN_S:-500}" python3 -m navzoo.agents.amp.train --out /tmp/amp --workers 15 --envs-per-worker 16 \
   --device cuda --hidden 1024,512 --minibatch-size 1920 --time-limit-s "${LIMIT_S:-455}" --total-steps 500000000 \
-  --ckpt-every 10 --ckpt-replay-rows 8000 --stage "${STAGE:-1}" --obstacles "${OBSTACLES:-0}" --json > "$OUT/train.log" 2>&1
+  --ckpt-every 10 --ckpt-replay-rows 8000 --stage "${STAGE:-1}" --obstacles "${OBSTACLES:-0}" \
+  --reset-disc "${RESET_DISC:-0}" ${TRAIN_ARGS:-} --json > "$OUT/train.log" 2>&1
 echo "train rc=$?"
 tail -5 "$OUT/train.log"
 cp /tmp/amp/metrics.jsonl "$OUT/" 2>/dev/null

@@ -317,6 +317,36 @@ def amp_features(state: dict[str, np.ndarray]) -> np.ndarray:
     )
 
 
+#: How the discriminator's velocity features are computed (``PathTaskConfig.amp_velocity``):
+#: ``"finite_difference"``: backward differences of the poses one control step apart, for reference
+#: and policy frames alike (:func:`finite_difference_velocities`); ``"physics"``: the simulator's
+#: instantaneous velocities for policy frames and the library's central differences for reference
+#: frames (the original inputs; measured mismatch in ``training/amp/README.md``).
+AMP_VELOCITY_MODES: tuple[str, ...] = ("finite_difference", "physics")
+
+
+def finite_difference_velocities(prev: dict[str, np.ndarray], cur: dict[str, np.ndarray], dt: float
+                                 ) -> dict[str, np.ndarray]:
+    """``cur`` (a ``read_state()``-like dict) with its four velocity fields replaced by backward
+    differences from ``prev`` over ``dt`` (same conventions as the simulator and the motion library):
+    root linear velocity (world), root angular velocity ``log(q1 q0^-1) / dt`` (world), spherical joint
+    velocities ``log(q0^-1 q1) / dt`` (child frame), revolute joint rates.
+
+    The discriminator compares reference and policy frames through this one function, so that both
+    sides' velocities mean the same thing: the motion between two control steps. (The simulator's
+    instantaneous velocities do not: torque-limited position motors reach a new target within the
+    first physics substep and report near-zero joint velocities at the end of the control step.)
+    """
+    out = dict(cur)
+    out["root_lin_vel"] = (np.asarray(cur["root_pos"], np.float64) - np.asarray(prev["root_pos"], np.float64)) / dt
+    out["root_ang_vel"] = quat_to_rotvec(quat_mul(np.asarray(cur["root_quat"], np.float64),
+                                                  quat_conj(np.asarray(prev["root_quat"], np.float64)))) / dt
+    out["sph_vel"] = quat_to_rotvec(quat_mul(quat_conj(np.asarray(prev["sph"], np.float64)),
+                                             np.asarray(cur["sph"], np.float64))) / dt
+    out["rev_vel"] = (np.asarray(cur["rev"], np.float64) - np.asarray(prev["rev"], np.float64)) / dt
+    return out
+
+
 def self_observation(state: dict[str, np.ndarray]) -> np.ndarray:
     """The policy's humanoid self-observation (N, 105): the same layout as :func:`amp_features`
     (IsaacGymEnvs uses one function for both); kept separate so either can grow on its own."""

@@ -109,6 +109,9 @@ class AmpVecEnv(Protocol):
     def sample_reference_amp_obs(self, n: int, rng: np.random.Generator) -> np.ndarray: ...
 
 
+# Discriminator inputs of checkpoints saved before ``amp_obs_version`` was recorded (up to 3315).
+_LEGACY_AMP_OBS_VERSION = "velocity=physics;ground=None"
+
 # Fields that fix tensor shapes: a checkpoint can only be loaded into a learner that agrees on them.
 _ARCH_FIELDS = ("actor_hidden", "critic_hidden", "disc_hidden", "activation", "learn_std")
 
@@ -359,6 +362,10 @@ class AmpLearner:
         ).to(self.device)
         self.critic = Critic(self.obs_dim, cfg.critic_hidden, cfg.activation, init_gen).to(self.device)
         self.disc = Discriminator(self.amp_obs_dim, cfg.disc_hidden, cfg.activation, init_gen).to(self.device)
+        #: what the env's discriminator inputs mean (``env.amp_obs_version``, None if the env does not say)
+        self.amp_obs_version: str | None = getattr(env, "amp_obs_version", None)
+        #: iterations at which the discriminator was re-initialised (:meth:`reset_discriminator`)
+        self.disc_resets: list[int] = []
         self.obs_norm = RunningMeanStd(self.obs_dim, cfg.norm_eps, cfg.obs_clip).to(self.device)
         self.amp_norm = RunningMeanStd(self.amp_obs_dim, cfg.norm_eps, cfg.obs_clip).to(self.device)
         self.value_norm = RunningMeanStd(1, cfg.norm_eps, clip=None).to(self.device)
@@ -379,6 +386,19 @@ class AmpLearner:
         self._ep_len = np.zeros(self.num_envs, dtype=np.int64)
         self._finished: list[tuple[float, int]] = []
         self._rollout: _Rollout | None = None
+
+    def reset_discriminator(self) -> None:
+        """Start a fresh discriminator: new weights (seeded by ``config.seed`` and the iteration), optimiser,
+        input normaliser and an empty replay buffer. Actor, critic, their optimisers and the observation and
+        value normalisers are untouched. For resuming a checkpoint whose discriminator inputs changed
+        meaning (``env.amp_obs_version``)."""
+        cfg = self.cfg
+        gen = torch.Generator().manual_seed(cfg.seed + 7919 * (self.iteration + 1))
+        self.disc = Discriminator(self.amp_obs_dim, cfg.disc_hidden, cfg.activation, gen).to(self.device)
+        self.disc_opt = torch.optim.Adam(self.disc.parameters(), lr=cfg.disc_lr, eps=cfg.adam_eps)
+        self.amp_norm = RunningMeanStd(self.amp_obs_dim, cfg.norm_eps, cfg.obs_clip).to(self.device)
+        self.replay = ReplayBuffer(cfg.replay_size, self.amp_obs_dim, self.device, cfg.replay_keep_prob)
+        self.disc_resets.append(self.iteration)
 
     # ------------------------------------------------------------------ acting
 
@@ -652,6 +672,7 @@ class AmpLearner:
         resume: bool = True,
         verbose: bool = False,
         time_limit_s: float | None = None,
+        reset_disc: bool = False,
     ) -> dict[str, Any]:
         """Collect and update until ``global_step >= total_steps`` (or ``time_limit_s`` of wall time).
 
@@ -659,7 +680,8 @@ class AmpLearner:
         ``ckpt_every`` iterations and at the end, logs to TensorBoard and ``<log_dir>/metrics.jsonl``.
         Ctrl-C (SIGINT, main thread) finishes the current iteration, checkpoints and returns with
         ``interrupted=True``; a second Ctrl-C, or a ``KeyboardInterrupt`` raised inside the loop,
-        checkpoints at once (unless this iteration is already saved) and re-raises.
+        checkpoints at once (unless this iteration is already saved) and re-raises. ``reset_disc``: the
+        resumed checkpoint's discriminator is replaced by a fresh one (see :meth:`load_checkpoint`).
         """
         if ckpt_every <= 0:
             raise ValueError(f"ckpt_every must be positive, got {ckpt_every}")
@@ -667,7 +689,7 @@ class AmpLearner:
         if ckpt_dir is not None and resume:
             latest = ckpt.latest_checkpoint(ckpt_dir)
             if latest is not None:
-                self.load_checkpoint(latest)
+                self.load_checkpoint(latest, reset_disc=reset_disc)
                 resumed_from = str(latest)
                 if verbose:
                     print(f"resumed from {latest} (iteration {self.iteration}, step {self.global_step})")
@@ -788,17 +810,23 @@ class AmpLearner:
             },
             "numpy_rng": self.rng.bit_generator.state,
             "env_state": env_json,
+            "amp_obs_version": self.amp_obs_version,
+            "disc_resets": list(self.disc_resets),
             "torch_version": torch.__version__,
             "saved_unix": time.time(),
         }
         return ckpt.save_checkpoint(ckpt_dir, self.iteration, tensors, meta, keep=self.cfg.keep_checkpoints)
 
-    def load_checkpoint(self, path: str | Path) -> None:
+    def load_checkpoint(self, path: str | Path, reset_disc: bool = False) -> None:
         """Restore a checkpoint written by :meth:`save_checkpoint` (a ``ckpt_*`` directory).
 
         Raises :class:`CheckpointError` naming the file if it is corrupted, foreign, or made for other
-        dimensions or network sizes. Other hyper-parameters may differ (a warning lists them): this
-        learner's config wins, including the learning rates.
+        dimensions or network sizes, or if its discriminator was trained on inputs of another meaning
+        (``amp_obs_version``; checkpoints without it were made with ``"velocity=physics;ground=None"``)
+        and ``reset_disc`` is false. Other hyper-parameters may differ (a warning lists them): this
+        learner's config wins, including the learning rates. ``reset_disc``: load everything but the
+        discriminator, its optimiser, input normaliser and replay buffer, and start those fresh
+        (:meth:`reset_discriminator`).
         """
         tensors, meta = ckpt.load_checkpoint(path)
         meta_path = Path(path) if Path(path).is_dir() else Path(path).parent
@@ -815,6 +843,12 @@ class AmpLearner:
                 f"{meta_path}: network config differs: "
                 + ", ".join(f"{k}={saved_cfg.get(k)!r} (this learner: {mine[k]!r})" for k in arch)
             )
+        saved_version = meta.get("amp_obs_version") or _LEGACY_AMP_OBS_VERSION
+        if self.amp_obs_version is not None and saved_version != self.amp_obs_version and not reset_disc:
+            raise CheckpointError(
+                f"{meta_path}: its discriminator was trained on inputs {saved_version!r}, this env gives "
+                f"{self.amp_obs_version!r}; resume with reset_disc=True (train: --reset-disc 1)"
+            )
         changed = sorted(k for k in mine if k in saved_cfg and saved_cfg[k] != mine[k])
         if changed:
             warnings.warn(
@@ -823,14 +857,15 @@ class AmpLearner:
         try:
             self.actor.load_state_dict(tensors["actor"])
             self.critic.load_state_dict(tensors["critic"])
-            self.disc.load_state_dict(tensors["disc"])
             self.obs_norm.load_state_dict(tensors["obs_norm"])
-            self.amp_norm.load_state_dict(tensors["amp_norm"])
             self.value_norm.load_state_dict(tensors["value_norm"])
             self.actor_opt.load_state_dict(tensors["actor_opt"])
             self.critic_opt.load_state_dict(tensors["critic_opt"])
-            self.disc_opt.load_state_dict(tensors["disc_opt"])
-            self.replay.load_state_dict(tensors["replay"])
+            if not reset_disc:
+                self.disc.load_state_dict(tensors["disc"])
+                self.amp_norm.load_state_dict(tensors["amp_norm"])
+                self.disc_opt.load_state_dict(tensors["disc_opt"])
+                self.replay.load_state_dict(tensors["replay"])
             self.torch_gen.set_state(tensors["torch_rng"])
             self.rng.bit_generator.state = meta["numpy_rng"]
             counters = meta["counters"]
@@ -850,6 +885,9 @@ class AmpLearner:
         self.iteration = int(counters["iteration"])
         self.global_step = int(counters["global_step"])
         self.nonfinite_skips = int(counters.get("nonfinite_skips", 0))
+        self.disc_resets = [int(i) for i in meta.get("disc_resets", [])]
+        if reset_disc:
+            self.reset_discriminator()
         self._rollout = None
         env_json = meta.get("env_state")
         if (

@@ -29,15 +29,18 @@ import numpy as np
 
 from navzoo import sim as nzsim
 from navzoo.agents.amp.features import (
+    AMP_VELOCITY_MODES,
     FEATURE_DIM,
     N_RAYS,
     amp_features,
+    finite_difference_velocities,
     heading,
     obstacle_observation,
     policy_observation,
     quat_mul,
     quat_rotate,
     reference_features,
+    reference_state_dict,
     yaw_quat,
 )
 from navzoo.agents.amp.sim import ACTION_DIM, PhysicsHumanoids, actions_to_targets
@@ -61,6 +64,10 @@ class PathTaskConfig:
     max_path_error: float = 4.0  # m: farther from the current target point ends the episode
     rsi_prob: float = 0.5  # reference state initialisation, else a standing start
     amp_window: int = 2
+    # velocities of the discriminator's features: "finite_difference" (backward differences of the poses
+    # one control step apart, reference and policy alike) or "physics" (simulator velocities vs the
+    # library's central differences: the inputs of checkpoints up to 3315)
+    amp_velocity: str = "finite_difference"
     alpha_p: float = 2.0
     alpha_e: float = 0.0005
     alpha_d: float = 1.8
@@ -94,6 +101,9 @@ class PathTaskConfig:
                 raise ValueError(f"PathTaskConfig.{name} must be >= 1, got {getattr(self, name)!r}")
         if self.physics_hz % self.control_hz:
             raise ValueError("PathTaskConfig.physics_hz must be a multiple of control_hz")
+        if self.amp_velocity not in AMP_VELOCITY_MODES:
+            raise ValueError(f"PathTaskConfig.amp_velocity must be one of {AMP_VELOCITY_MODES}, "
+                             f"got {self.amp_velocity!r}")
 
 
 class AmpPathEnv:
@@ -115,6 +125,7 @@ class AmpPathEnv:
         self.obs_dim = FEATURE_DIM + 2 * self.cfg.n_waypoints + (N_RAYS if self.cfg.obstacle_obs else 0)
         self.act_dim = ACTION_DIM
         self.amp_obs_dim = FEATURE_DIM * self.cfg.amp_window
+        self.amp_obs_version = amp_obs_version(self.cfg, reference)
         self.episode_steps = int(round(self.cfg.episode_seconds * self.cfg.control_hz))
         self._wp_stride = int(round(self.cfg.waypoint_dt * self.cfg.control_hz))
         self._path_len = self.episode_steps + self._wp_stride * self.cfg.n_waypoints + 1
@@ -134,6 +145,8 @@ class AmpPathEnv:
         self.paths = np.zeros((self.num_envs, self._path_len, 2))
         self.t = np.zeros(self.num_envs, dtype=int)
         self._window = np.zeros((self.num_envs, self.cfg.amp_window, FEATURE_DIM))
+        # poses of the last control step (finite-difference velocities of the discriminator's features)
+        self._prev = {k: np.zeros((self.num_envs,) + shape) for k, shape in _POSE_SHAPES.items()}
         # stage 3 state
         e, nv = self.num_envs, self.cfg.n_neighbours
         self._crowd = np.zeros(e, dtype=bool)
@@ -253,7 +266,11 @@ class AmpPathEnv:
             self.bodies.set_state(self.bodies.standing_state(xy[~rsi], yaw[~rsi]), idx[~rsi])
         state = self.bodies.read_state()
         head = heading(state["root_quat"][idx])
+        # The first frame of an episode has no predecessor: its features keep the velocities it was
+        # started with (the reference's for RSI, zero standing), in either velocity mode.
         feats = amp_features(state)[idx]
+        for key in _POSE_SHAPES:
+            self._prev[key][idx] = state[key][idx]
         for k, i in enumerate(idx):
             self.paths[i] = self._make_path(state["root_pos"][i, :2], head[k], speeds[k])
             self._window[i] = feats[k]
@@ -387,7 +404,12 @@ class AmpPathEnv:
         r_e = -cfg.alpha_e * self.bodies.joint_power()
         r_d = np.exp(np.minimum(0.0, u) / cfg.alpha_d) - 1.0
         reward = r_tau + r_e + r_d
-        feats = amp_features(state)
+        if cfg.amp_velocity == "finite_difference":
+            feats = amp_features(finite_difference_velocities(self._prev, state, self.dt))
+        else:
+            feats = amp_features(state)
+        for key in _POSE_SHAPES:
+            self._prev[key] = state[key].copy()
         self._window = np.roll(self._window, -1, axis=1)
         self._window[:, -1] = feats
         amp_obs = self._window.reshape(self.num_envs, -1).astype(np.float32)
@@ -410,20 +432,68 @@ class AmpPathEnv:
 
     def sample_reference_amp_obs(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """``n`` windows of W consecutive reference frames (control rate), flattened like ``amp_obs``."""
-        return reference_amp_windows(self.reference, n, rng, self.cfg.amp_window, self.dt)
+        return reference_amp_windows(self.reference, n, rng, self.cfg.amp_window, self.dt, self.cfg.amp_velocity)
 
     def close(self) -> None:
         nzsim.disconnect(self.client)
 
 
+_POSE_SHAPES = {"root_pos": (3,), "root_quat": (4,), "sph": (8, 4), "rev": (4,)}
+
+
+def amp_obs_version(config: PathTaskConfig, reference: ReferenceMotion) -> str:
+    """What the discriminator inputs mean (stored in checkpoints; a change invalidates the discriminator):
+    the velocity mode and the reference's ground offset (:func:`ground_clips`)."""
+    ground = (getattr(reference, "meta", None) or {}).get("ground_contact_z")
+    return f"velocity={config.amp_velocity};ground={ground}"
+
+
 def reference_amp_windows(reference: ReferenceMotion, n: int, rng: np.random.Generator, window: int,
-                          dt: float) -> np.ndarray:
-    """``n`` windows of ``window`` consecutive reference frames ``dt`` apart, flattened (n, window * F)."""
+                          dt: float, velocity: str = "physics") -> np.ndarray:
+    """``n`` windows of ``window`` consecutive reference frames ``dt`` apart, flattened (n, window * F).
+
+    ``velocity="finite_difference"``: every frame's velocities are backward differences from the state
+    ``dt`` before it (one more state per window), as :class:`AmpPathEnv` computes them for the policy;
+    ``"physics"``: the library's stored (central-difference) velocities.
+    """
     clips, times = reference.sample_times(rng, n)
     dur = np.array([reference.duration(int(c)) for c in clips])
-    times = np.clip(times, (window - 1) * dt, np.maximum(dur, (window - 1) * dt))
-    frames = [reference_features(reference.state_at(clips, times - (window - 1 - k) * dt)) for k in range(window)]
+    if velocity == "physics":
+        times = np.clip(times, (window - 1) * dt, np.maximum(dur, (window - 1) * dt))
+        frames = [reference_features(reference.state_at(clips, times - (window - 1 - k) * dt)) for k in range(window)]
+    elif velocity == "finite_difference":
+        times = np.clip(times, window * dt, np.maximum(dur, window * dt))
+        states = [reference_state_dict(reference.state_at(clips, times - (window - k) * dt)) for k in range(window + 1)]
+        frames = [amp_features(finite_difference_velocities(states[k], states[k + 1], dt)) for k in range(window)]
+    else:
+        raise ValueError(f"velocity must be one of {AMP_VELOCITY_MODES}, got {velocity!r}")
     return np.stack(frames, axis=1).reshape(n, -1).astype(np.float32)
+
+
+#: Height (m) of the lowest foot point of the physics humanoids while walking: the median over policy
+#: rollouts of checkpoint 2821 (stage 3 + obstacles) is -1.8 mm (feet sink into the box ground a little).
+GROUND_CONTACT_Z = -0.002
+
+
+def ground_clips(library, contact_z: float = GROUND_CONTACT_Z):
+    """A copy of a :class:`~navzoo.agents.motion_lib.MotionLibrary` whose clips are lowered (or raised)
+    so that the median over each clip's frames of the lowest foot point is at ``contact_z``.
+
+    The converted clips touch z = 0 with their lowest foot at least once, so in most frames the feet
+    float: the median lowest foot point of the locomotion clips is +9.9 mm, while the physics body
+    stands at -1.8 mm; the same pose then has a 1.2 cm higher root in the reference than in the
+    simulation, which the discriminator sees in the root height (measured in ``training/amp/README.md``).
+    """
+    from navzoo.agents.motion_lib import MotionLibrary, foot_heights, humanoid_fk
+
+    arrays = {k: v.copy() for k, v in library.arrays.items()}
+    pos, quat = humanoid_fk(arrays["root_pos"], arrays["root_quat"], arrays["sph"], arrays["rev"])
+    low = foot_heights(pos, quat).min(axis=-1)
+    for c in range(len(library)):
+        s = slice(library.offsets[c], library.offsets[c + 1])
+        arrays["root_pos"][s, 2] += contact_z - np.median(low[s])
+    return MotionLibrary(arrays, library.offsets, library.clips, library.fps,
+                         {**library.meta, "ground_contact_z": contact_z})
 
 
 def _place(ref: ReferenceState, xy: np.ndarray, yaw: np.ndarray) -> ReferenceState:

@@ -32,6 +32,14 @@ def locomotion_reference():
     return MotionLibrary.load().select(tags=LOCOMOTION_TAGS, exclude_tags=EXCLUDE_TAGS)
 
 
+def grounded_locomotion_reference():
+    """:func:`locomotion_reference` with every clip's feet put on the physics ground
+    (:func:`navzoo.agents.amp.path_env.ground_clips`): the training reference (module-level: picklable)."""
+    from navzoo.agents.amp.path_env import ground_clips
+
+    return ground_clips(locomotion_reference())
+
+
 @dataclass
 class TrainArgs:
     out: str = "runs/amp"
@@ -49,6 +57,18 @@ class TrainArgs:
     time_limit_s: float | None = None
     pd_mode: str = "motor"
     obstacles: int = 0  # 1: obstacle rays in the observation, boxes and paired humanoids in each patch
+    # discriminator inputs (see PathTaskConfig.amp_velocity and path_env.ground_clips); a change of either
+    # invalidates a checkpoint's discriminator: resume it with --reset-disc 1
+    amp_velocity: str = "finite_difference"
+    ground_reference: int = 1
+    # 1: on resume, keep actor, critic, observation and value normalisers and their optimisers, but start a
+    # fresh discriminator (weights, optimiser, input normaliser, replay buffer)
+    reset_disc: int = 0
+    # discriminator hyper-parameters (AmpConfig; a resumed checkpoint takes the values given here)
+    disc_lr: float = 1e-4
+    disc_grad_penalty: float = 5.0
+    disc_logit_reg: float = 0.05
+    disc_weight_decay: float = 1e-4
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -71,14 +91,18 @@ def run(args: TrainArgs) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     hidden = tuple(int(h) for h in args.hidden.split(","))
     task = PathTaskConfig(stage=args.stage, pd_mode=args.pd_mode, obstacle_obs=bool(args.obstacles),
-                          boxes_per_patch=4 if args.obstacles else 0, pair_patches=bool(args.obstacles))
+                          boxes_per_patch=4 if args.obstacles else 0, pair_patches=bool(args.obstacles),
+                          amp_velocity=args.amp_velocity)
+    make_reference = grounded_locomotion_reference if args.ground_reference else locomotion_reference
     if args.workers > 1:
-        env: Any = SubprocAmpVecEnv(locomotion_reference, args.workers, args.envs_per_worker, task, seed=args.seed)
+        env: Any = SubprocAmpVecEnv(make_reference, args.workers, args.envs_per_worker, task, seed=args.seed)
     else:
-        env = AmpPathEnv(args.envs_per_worker, locomotion_reference(), task, seed=args.seed)
+        env = AmpPathEnv(args.envs_per_worker, make_reference(), task, seed=args.seed)
     config = AmpConfig(seed=args.seed, actor_hidden=hidden, critic_hidden=hidden, disc_hidden=hidden,
                        rollout_steps=args.rollout_steps, minibatch_size=args.minibatch_size,
-                       ckpt_replay_rows=args.ckpt_replay_rows)
+                       ckpt_replay_rows=args.ckpt_replay_rows, disc_lr=args.disc_lr,
+                       disc_grad_penalty=args.disc_grad_penalty, disc_logit_reg=args.disc_logit_reg,
+                       disc_weight_decay=args.disc_weight_decay)
     device = args.device if args.device != "cuda" or torch.cuda.is_available() else "cpu"
     (out / "train_args.json").write_text(json.dumps({**dataclasses.asdict(args), "task": dataclasses.asdict(task),
                                                      "learner": config.to_dict()}, indent=2, default=str))
@@ -86,7 +110,7 @@ def run(args: TrainArgs) -> dict[str, Any]:
     t0 = time.time()
     try:
         result = learner.train(args.total_steps, log_dir=out, ckpt_dir=out / "checkpoints", ckpt_every=args.ckpt_every,
-                               verbose=True, time_limit_s=args.time_limit_s)
+                               verbose=True, time_limit_s=args.time_limit_s, reset_disc=bool(args.reset_disc))
     finally:
         env.close()
     result = {**result, "wall_s": time.time() - t0, "out": str(out)}

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from navzoo.agents.amp.path_env import AmpPathEnv, PathTaskConfig, reference_amp_windows
+from navzoo.agents.amp.path_env import AmpPathEnv, PathTaskConfig, amp_obs_version, reference_amp_windows
 from navzoo.agents.reference import ReferenceMotion
 
 
@@ -74,6 +74,7 @@ class SubprocAmpVecEnv:
         self.obs_dim, self.act_dim, self.amp_obs_dim = dims[0]
         # The discriminator's real samples come from the clips here (no simulation needed).
         self._reference = make_reference()
+        self.amp_obs_version = amp_obs_version(self.config, self._reference)
 
     def _recv(self, w: int, what: str) -> Any:
         try:
@@ -111,7 +112,8 @@ class SubprocAmpVecEnv:
         return obs, rew, term, trunc, info
 
     def sample_reference_amp_obs(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        return reference_amp_windows(self._reference, n, rng, self.config.amp_window, 1.0 / self.config.control_hz)
+        return reference_amp_windows(self._reference, n, rng, self.config.amp_window, 1.0 / self.config.control_hz,
+                                     self.config.amp_velocity)
 
     def close(self) -> None:
         for w, c in enumerate(self._conns):
