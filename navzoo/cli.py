@@ -63,6 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_ped_arguments(esub.add_parser(
         "pedestrians", help="AMP pedestrians: clip tracking, trajectory following, motion realism, throughput"))
+    from navzoo.forecast.evaluate import add_arguments as add_forecast_arguments
+
+    add_forecast_arguments(esub.add_parser("forecast", help="minADE/minFDE of trajectory forecasters on ETH/UCY files"))
 
     bench = sub.add_parser(
         "benchmark", help="run robot policies over scenes x crowds x densities x episodes (parallel, resumable)",
@@ -117,6 +120,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                 from navzoo.benchmark.pedestrians import run_cli
 
                 return run_cli(args)
+            if args.eval_command == "forecast":
+                from navzoo.forecast.evaluate import run_cli as run_forecast_cli
+
+                return run_forecast_cli(args)
             parser.parse_args(["eval", "--help"])
             return 2
     except (ValueError, TypeError, FileNotFoundError, OSError) as exc:

@@ -26,20 +26,22 @@ class CrowdPolicy:
         model: ``"sfm"``, ``"orca"`` (navzoo's ORCA: keep-right bias and one-step safety, see
             docs/crowd_models.md) or ``"orca_rvo2"`` (the same solver with RVO2's exact
             semantics and CrowdNav's settings: maximum speed = preferred speed, discs 0.01 m larger
-            inside ORCA, slowing down within 1 m of the goal, as CrowdNav's pedestrians).
+            inside ORCA, slowing down within 1 m of the goal, as CrowdNav's pedestrians) or
+            ``"diffusion"`` (the env's :class:`navzoo.agents.diffusion.crowd.DiffusionCrowd` plans,
+            walked step by step).
         see_robots: whether people react to robots (False = CrowdNav's invisible robot).
         sfm_params / orca_params: model parameters.
     """
 
     def __init__(
         self,
-        model: Literal["sfm", "orca", "orca_rvo2"] = "sfm",
+        model: Literal["sfm", "orca", "orca_rvo2", "diffusion"] = "sfm",
         see_robots: bool = True,
         sfm_params: SocialForceParams | None = None,
         orca_params: OrcaParams | None = None,
     ) -> None:
-        if model not in ("sfm", "orca", "orca_rvo2"):
-            raise ValueError(f"crowd model must be 'sfm', 'orca' or 'orca_rvo2', got {model!r}")
+        if model not in ("sfm", "orca", "orca_rvo2", "diffusion"):
+            raise ValueError(f"crowd model must be 'sfm', 'orca', 'orca_rvo2' or 'diffusion', got {model!r}")
         self.model = model
         self.see_robots = see_robots
         self.sfm_params = sfm_params or SocialForceParams()
@@ -56,6 +58,10 @@ class CrowdPolicy:
         h = np.arange(R, N)
         if h.size == 0:
             return np.zeros((0, 2))
+        if self.model == "diffusion":
+            if env.diffusion is None:
+                raise ValueError("CrowdPolicy('diffusion') needs an env made with crowd_model='diffusion'")
+            return env.diffusion.velocities(env)
         pos, vel, rad = env.pos[h], env.vel[h], env.radius[h]
         # Toward the next A* waypoint, with turn-taking; CrowdNav's people slow down within 1 m of the goal.
         pref = env.human_preferred_velocity(slow_radius=1.0 if self.model == "orca_rvo2" else 0.5)

@@ -128,6 +128,11 @@ class AmpHumans:
         r_pos, r_vel, r_rad = env.pos[robots], env.vel[robots], env.radius[robots]
         tol = env.config.waypoint_tolerance
         steps = int(np.ceil(self.horizon / PLAN_DT))
+        if env.diffusion is not None:  # sampled plans instead of a rule-based rollout
+            self.paths = resample(env.diffusion.plan_positions(env, PLAN_DT, steps), PLAN_DT, 1.0 / CONTROL_HZ,
+                                  self.path_len)
+            self.plan_t[:] = self.t
+            return
         out = np.empty((self.n, steps + 1, 2))
         out[:, 0] = pos
         for k in range(steps):

@@ -13,7 +13,7 @@ from typing import Any, Literal
 
 from navzoo.agents.robot import RobotSpec
 
-CrowdModel = Literal["sfm", "orca", "orca_rvo2"]
+CrowdModel = Literal["sfm", "orca", "orca_rvo2", "diffusion"]
 HumanModel = Literal["kinematic", "amp"]
 AMP_CONTROL_HZ = 30  # control rate of the AMP pedestrian controller (its training rate)
 
@@ -35,8 +35,14 @@ class NavConfig:
             ``amp_replan_seconds``; needs ``dt`` a multiple of 1/30 s, ``navzoo.make`` uses 1/30 s;
             see docs/pedestrians.md).
         crowd_model: rule-based trajectory generator of frozen pedestrians: ``"sfm"`` (social
-            force), ``"orca"`` (navzoo's ORCA) or ``"orca_rvo2"`` (ORCA with RVO2's exact
-            semantics, as CrowdNav's pedestrians).
+            force), ``"orca"`` (navzoo's ORCA), ``"orca_rvo2"`` (ORCA with RVO2's exact
+            semantics, as CrowdNav's pedestrians) or ``"diffusion"`` (paths sampled every 2 s from the
+            trajectory diffusion model trained on ETH/UCY, guided toward A* waypoints and away from
+            people and walls; :mod:`navzoo.agents.diffusion.crowd`, docs/crowd.md).
+        diffusion_model: ``crowd_model="diffusion"``: directory of an exported model (None = the
+            shipped ``policies/trajectory_diffusion``).
+        diffusion_samples: ``crowd_model="diffusion"``: futures sampled per person and plan (the one
+            of lowest guidance cost is walked).
         humans_see_robots: whether pedestrians react to robots (off = CrowdNav's invisible robot).
         human_yielding: turn-taking in bottlenecks: a pedestrian stuck face to face with another
             steps back and waits (:mod:`navzoo.agents.yielding`), so opposite flows through a door
@@ -80,6 +86,8 @@ class NavConfig:
     robot: RobotSpec = field(default_factory=RobotSpec)
     human_model: HumanModel = "kinematic"
     crowd_model: CrowdModel = "sfm"
+    diffusion_model: str | None = None
+    diffusion_samples: int = 4
     humans_see_robots: bool = True
     human_yielding: bool = True
     human_radius: float = 0.3
@@ -128,8 +136,12 @@ class NavConfig:
                                  f"(the AMP controller's rate), got {self.dt!r}; use dt=1/{AMP_CONTROL_HZ}")
         if not _is_pos(self.amp_replan_seconds):
             raise bad("amp_replan_seconds", "a finite number > 0")
-        if self.crowd_model not in ("sfm", "orca", "orca_rvo2"):
-            raise bad("crowd_model", "'sfm', 'orca' or 'orca_rvo2'")
+        if self.crowd_model not in ("sfm", "orca", "orca_rvo2", "diffusion"):
+            raise bad("crowd_model", "'sfm', 'orca', 'orca_rvo2' or 'diffusion'")
+        if self.diffusion_model is not None and (not isinstance(self.diffusion_model, str) or not self.diffusion_model):
+            raise bad("diffusion_model", "None or a path to an exported trajectory diffusion model")
+        if not _is_int(self.diffusion_samples) or self.diffusion_samples < 1:
+            raise bad("diffusion_samples", "an integer >= 1")
         if not isinstance(self.humans_see_robots, bool):
             raise bad("humans_see_robots", "a bool")
         if not isinstance(self.human_yielding, bool):

@@ -180,6 +180,11 @@ class NavEnv(ParallelEnv):
                 p.setCollisionFilterGroupMask(body, link, GROUP_STATIC, GROUP_STATIC | GROUP_ROBOT,
                                               physicsClientId=self.client)
         self.robots = RobotBodies(self.client, cfg.robot, self.n_robots)
+        self.diffusion = None
+        if cfg.crowd_model == "diffusion" and self.n_humans > 0:
+            from navzoo.agents.diffusion.crowd import DiffusionCrowd
+
+            self.diffusion = DiffusionCrowd(cfg.diffusion_model, n_samples=cfg.diffusion_samples)
         self.amp: AmpHumans | None = None
         if cfg.human_model == "amp" and self.n_humans > 0:
             self.amp = AmpHumans(self)  # sets the client's time step to 1/120 s
@@ -277,6 +282,9 @@ class NavEnv(ParallelEnv):
         self.turn_taking = TurnTaking(H) if cfg.human_yielding else None
 
         self.robots.reset(self.pos[:R], self.yaw[:R])
+        if self.diffusion is not None:
+            self.diffusion.seed = int(self.rng_crowd.integers(2**31))
+            self.diffusion.reset(self)
         self.human_fallen = np.zeros(H, dtype=bool)
         self.human_map_contact = np.zeros(H, dtype=bool)
         self.human_agent_contact = np.zeros(H, dtype=bool)
@@ -450,6 +458,8 @@ class NavEnv(ParallelEnv):
         # Bookkeeping: history, time.
         self.steps += 1
         self.sim_time += dt
+        if self.diffusion is not None:
+            self.diffusion.observe(self)
         self.hist_pos = np.roll(self.hist_pos, -1, axis=0)
         self.hist_vel = np.roll(self.hist_vel, -1, axis=0)
         self.hist_yaw = np.roll(self.hist_yaw, -1, axis=0)

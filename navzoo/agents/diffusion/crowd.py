@@ -1,0 +1,260 @@
+"""The ``diffusion`` crowd: pedestrian paths sampled from the trajectory diffusion model, in the loop.
+
+Every ``replan_s`` seconds (2 s) all pedestrians of a world are planned in one batch:
+
+1. each person's last 8 positions at the model's step (0.4 s, kept by :meth:`DiffusionCrowd.observe`)
+   and those of its 16 nearest neighbours within 10 m (people and, when people see them, robots)
+   are moved into the person's agent frame with :func:`navzoo.forecast.data.normalize`, exactly as
+   the training windows were;
+2. the occupancy crop of the scene around the person (8 m, 32 cells, the same frame) conditions the
+   model, and the scene's distance field on the same crop feeds the wall guidance;
+3. ``n_samples`` futures (12 steps = 4.8 s) are drawn by DDIM with "clean" guidance: the end point
+   is pulled to the point of the person's A* path that lies ``v_pref x 4.8 s`` ahead (the sparse
+   global waypoint), and samples are pushed off other people's current plans and off walls;
+4. of each person's samples the one of lowest guidance cost is kept, in world coordinates.
+
+Kinematic pedestrians then walk their plan (:meth:`velocities`: the velocity that reaches the plan's
+point one control step ahead); AMP pedestrians get it as their target trajectory
+(:meth:`plan_positions`). People who stand still with no history get a walking-in history along their
+path, so that the first plan does not start from rest.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import torch
+
+from navzoo.agents.diffusion.guidance import agent_collision_cost, combine, map_collision_cost, target_cost
+from navzoo.agents.diffusion.model import TrajectoryDiffusion
+from navzoo.forecast import data as fdata
+
+if TYPE_CHECKING:
+    from navzoo.envs.nav_env import NavEnv
+
+__all__ = ["DiffusionCrowd", "default_model_dir"]
+
+MODEL_DT = 0.4  # s per model step (ETH/UCY protocol)
+MAP_EXTENT = 8.0  # m, side of the occupancy / distance crops
+
+
+def default_model_dir() -> Path:
+    """The shipped model: ``policies/trajectory_diffusion``."""
+    import policies
+
+    return Path(list(policies.__path__)[0]) / "trajectory_diffusion"
+
+
+def _ahead_on_path(path: np.ndarray, pos: np.ndarray, distance: float) -> np.ndarray:
+    """The point ``distance`` metres along ``[pos] + path`` (its end if the path is shorter)."""
+    pts = np.vstack([pos[None], path])
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    if distance >= cum[-1]:
+        return pts[-1].copy()
+    k = int(np.searchsorted(cum, distance, side="right") - 1)
+    f = (distance - cum[k]) / max(seg[k], 1e-9)
+    return pts[k] + f * (pts[k + 1] - pts[k])
+
+
+class DiffusionCrowd:
+    """Batched diffusion planner of all pedestrians of one env (see the module doc).
+
+    Args:
+        model: a :class:`TrajectoryDiffusion`, a directory of an exported model, or None for the
+            shipped one.
+        n_samples: futures sampled per person (the best by guidance cost is walked).
+        replan_s: seconds between plans.
+        guidance_scale: step size of the clean guidance.
+        target_weight, agent_weight, map_weight: weights of the guidance costs.
+        k_neighbors, neighbor_radius: neighbours given to the model.
+        seed: seed of the sampling noise (with the env's step count, so replays are exact).
+        device: torch device of the model.
+    """
+
+    def __init__(self, model: TrajectoryDiffusion | str | Path | None = None, n_samples: int = 4,
+                 replan_s: float = 2.0, guidance_scale: float = 0.05, target_weight: float = 1.0,
+                 agent_weight: float = 10.0, map_weight: float = 10.0, k_neighbors: int = 16,
+                 neighbor_radius: float = 10.0, seed: int = 0, device: str = "cpu") -> None:
+        if model is None or isinstance(model, (str, Path)):
+            from navzoo.agents.diffusion.trainer import load_model
+
+            folder = default_model_dir() if model is None else Path(model)
+            if not (folder / "model.pt").is_file():
+                raise FileNotFoundError(
+                    f"no trajectory diffusion model in {folder} (model.pt + config.json); train one with "
+                    "`navzoo train diffusion` (docs/crowd.md) or pass its directory")
+            model = load_model(folder, device)
+        if int(n_samples) < 1:
+            raise ValueError(f"n_samples must be >= 1, got {n_samples!r}")
+        if not replan_s > 0:
+            raise ValueError(f"replan_s must be > 0, got {replan_s!r}")
+        self.model = model.eval()
+        self.cfg = model.cfg
+        self.n_samples = int(n_samples)
+        self.replan_s = float(replan_s)
+        self.guidance_scale = float(guidance_scale)
+        self.weights = (float(target_weight), float(agent_weight), float(map_weight))
+        self.k = int(k_neighbors)
+        self.radius = float(neighbor_radius)
+        self.seed = int(seed)
+        self.device = device
+        self.n = 0
+
+    # ------------------------------------------------------------------ state
+    def reset(self, env: NavEnv) -> None:
+        """Start a new episode: walking-in histories, no plans yet."""
+        N = env.n_total
+        T = self.cfg.history
+        self.n = N
+        direction = np.zeros((N, 2))
+        for i in range(N):
+            ahead = _ahead_on_path(env.paths[i], env.pos[i], 1.0) - env.pos[i]
+            norm = np.linalg.norm(ahead)
+            direction[i] = ahead / norm if norm > 1e-6 else np.array([np.cos(env.yaw[i]), np.sin(env.yaw[i])])
+        speed = np.where(env.is_robot, 0.0, env.v_pref)
+        back = (np.arange(T)[::-1] * MODEL_DT)[None, :, None]  # T-1 .. 0 steps ago
+        self.hist = env.pos[:, None, :] - back * (speed[:, None, None] * direction[:, None, :])
+        self.hist_time = env.sim_time
+        self.plan: np.ndarray | None = None  # (H, steps + 1, 2) world positions of pedestrians
+        self.plan_time = -np.inf
+        self.plans_made = 0
+
+    def observe(self, env: NavEnv) -> None:
+        """Record positions every model step (call after every env step)."""
+        if self.n != env.n_total:
+            raise RuntimeError("DiffusionCrowd.observe before reset (or on another env)")
+        while env.sim_time + 1e-9 >= self.hist_time + MODEL_DT:
+            self.hist = np.concatenate([self.hist[:, 1:], env.pos[:, None, :]], axis=1)
+            self.hist_time += MODEL_DT
+
+    # ------------------------------------------------------------------ planning
+    def _world_batch(self, env: NavEnv, people: np.ndarray) -> dict[str, Any]:
+        R = env.n_robots
+        see = env.config.humans_see_robots
+        agents = np.flatnonzero(env.alive | ~env.is_robot) if see else np.arange(R, env.n_total)
+        B, T, K = people.size, self.cfg.history, self.k
+        neigh = np.zeros((B, K, T, 2))
+        mask = np.zeros((B, K, T), dtype=bool)
+        for b, i in enumerate(people):
+            others = agents[agents != i]
+            if others.size == 0:
+                continue
+            d = np.linalg.norm(env.pos[others] - env.pos[i], axis=1)
+            near = others[np.argsort(d)][: K][np.sort(d)[: K] < self.radius]
+            neigh[b, : near.size] = self.hist[near]
+            mask[b, : near.size] = True
+        return {"hist": self.hist[people].copy(), "neigh": neigh, "neigh_mask": mask,
+                "dt": np.full(B, MODEL_DT), "origin": np.zeros((B, 2)), "rot": np.repeat(np.eye(2)[None], B, axis=0)}
+
+    def plan_now(self, env: NavEnv) -> np.ndarray:
+        """Plan every pedestrian now; returns (H, steps + 1, 2) world positions (row 0 = now)."""
+        R, N = env.n_robots, env.n_total
+        people = np.arange(R, N)
+        H = self.cfg.horizon
+        if people.size == 0:
+            self.plan = np.zeros((0, H + 1, 2))
+            return self.plan
+        world = self._world_batch(env, people)
+        local = fdata.normalize(world)
+        B = people.size
+        heading = np.arctan2(local["rot"][:, 0, 1], local["rot"][:, 0, 0])
+        batch = {
+            "hist": torch.as_tensor(local["hist"], dtype=torch.float32),
+            "neigh": torch.as_tensor(local["neigh"], dtype=torch.float32),
+            "neigh_mask": torch.as_tensor(local["neigh_mask"]),
+            "dt": torch.full((B,), MODEL_DT),
+        }
+        if self.cfg.map_cells:
+            occ = env.grid.crop_many(env.pos[people], heading, MAP_EXTENT, self.cfg.map_cells)
+            batch["map"] = torch.as_tensor(occ)
+            batch["has_map"] = torch.ones(B, dtype=torch.bool)
+        # Guidance: the path point v_pref x horizon ahead, others' current plans, the scene's walls.
+        horizon_s = H * MODEL_DT
+        standing = env.arrived[people] | env.human_fallen
+        target_w = np.array([_ahead_on_path(env.paths[i], env.pos[i], env.v_pref[i] * horizon_s) for i in people])
+        target = fdata.to_local(target_w[:, None, :], local)[:, 0]
+        t_w, a_w, m_w = self.weights
+        costs = [target_cost(torch.as_tensor(target, dtype=torch.float32), t_w,
+                             valid=torch.as_tensor(~standing))]
+        others_w = self._others_future(env, people)
+        if others_w is not None:
+            o_pos, o_mask = others_w
+            o_local = fdata.to_local(o_pos.reshape(B, -1, 2), local).reshape(o_pos.shape)
+            costs.append(agent_collision_cost(torch.as_tensor(o_local, dtype=torch.float32), torch.as_tensor(o_mask),
+                                              radius=2 * float(env.config.human_radius), weight=a_w))
+        n_cells = 32
+        offs = (np.arange(n_cells) + 0.5 - n_cells / 2) * (MAP_EXTENT / n_cells)
+        lx, ly = np.meshgrid(offs, offs)
+        pts = np.stack([lx, ly], -1).reshape(1, -1, 2).repeat(B, 0)
+        dist = env.grid.distance_at(fdata.to_world(pts, local)).reshape(B, n_cells, n_cells)
+        costs.append(map_collision_cost(torch.as_tensor(dist, dtype=torch.float32), MAP_EXTENT,
+                                        radius=float(env.config.human_radius), weight=m_w))
+        guide = combine(*costs)
+        g = torch.Generator().manual_seed(self.seed * 1_000_003 + int(env.steps))
+        with torch.no_grad():
+            samples = self.model.sample(batch, self.n_samples, generator=g, guidance=guide,
+                                        guidance_scale=self.guidance_scale)  # (B, S, H, 2)
+        flat = samples.reshape(B * self.n_samples, H, 2)
+        idx = torch.arange(B).repeat_interleave(self.n_samples)
+        with torch.no_grad():
+            cost = guide(flat, idx).reshape(B, self.n_samples)
+        best = samples[torch.arange(B), cost.argmin(dim=1)].numpy().astype(np.float64)  # (B, H, 2)
+        path = np.concatenate([np.zeros((B, 1, 2)), best], axis=1)
+        plan = fdata.to_world(path, local)
+        plan[standing] = env.pos[people][standing][:, None, :]  # arrived or fallen people stay
+        self.plan = plan
+        self.plan_time = env.sim_time
+        self.plans_made += 1
+        return plan
+
+    def _others_future(self, env: NavEnv, people: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Every other agent's next 12 positions (B, M, H, 2) in the world: people on their current
+        plans (constant velocity when there is none), robots at constant velocity."""
+        H = self.cfg.horizon
+        R = env.n_robots
+        see = env.config.humans_see_robots
+        agents = np.flatnonzero(env.alive | ~env.is_robot) if see else np.arange(R, env.n_total)
+        if agents.size <= 1:
+            return None
+        steps = (np.arange(1, H + 1) * MODEL_DT)[None, :, None]
+        fut = env.pos[agents][:, None, :] + steps * env.vel[agents][:, None, :]
+        if self.plan is not None and self.plan.shape[0] == env.n_humans:
+            t_rel = env.sim_time - self.plan_time
+            for m, a in enumerate(agents):
+                if a >= R:
+                    fut[m] = self._plan_at(a - R, t_rel + steps[0, :, 0])
+        B = people.size
+        others = np.repeat(fut[None], B, axis=0)
+        mask = agents[None, :] != people[:, None]
+        return others, mask
+
+    def _plan_at(self, j: int, t: np.ndarray) -> np.ndarray:
+        """Positions of pedestrian j's plan at times t (s after the plan was made), held at its end."""
+        grid_t = np.arange(self.plan.shape[1]) * MODEL_DT
+        tc = np.clip(t, 0.0, grid_t[-1])
+        return np.stack([np.interp(tc, grid_t, self.plan[j, :, 0]), np.interp(tc, grid_t, self.plan[j, :, 1])], -1)
+
+    # ------------------------------------------------------------------ outputs
+    def maybe_plan(self, env: NavEnv, force: bool = False) -> None:
+        if force or self.plan is None or env.sim_time - self.plan_time >= self.replan_s - 1e-9:
+            self.plan_now(env)
+
+    def velocities(self, env: NavEnv) -> np.ndarray:
+        """World velocities (H, 2) that take kinematic pedestrians to their plan one step ahead."""
+        self.maybe_plan(env)
+        R, dt = env.n_robots, env.config.dt
+        t_rel = env.sim_time - self.plan_time + dt
+        goal = np.stack([self._plan_at(j, np.array([t_rel]))[0] for j in range(env.n_humans)]) if env.n_humans else np.zeros((0, 2))
+        v = (goal - env.pos[R:]) / dt
+        speed = np.linalg.norm(v, axis=1, keepdims=True)
+        vmax = env.config.human_max_speed
+        return np.where(speed > vmax, v / np.maximum(speed, 1e-9) * vmax, v)
+
+    def plan_positions(self, env: NavEnv, dt: float, steps: int) -> np.ndarray:
+        """(H, steps + 1, 2) positions every ``dt`` from now along fresh plans (AMP target paths)."""
+        self.plan_now(env)
+        t = np.arange(steps + 1) * dt
+        return np.stack([self._plan_at(j, t) for j in range(env.n_humans)]) if env.n_humans else np.zeros((0, steps + 1, 2))

@@ -1,0 +1,310 @@
+"""Forecast accuracy of every registered forecaster on ETH/UCY-format data: ``navzoo eval forecast``.
+
+Forecasters are created per fold by factories kept in a registry, so another model (the diffusion
+model) is added with one call and then appears as another key of the result::
+
+    from navzoo.forecast.evaluate import register_forecaster
+    register_forecaster("diffusion", lambda ctx: MyModel.load(...))  # ctx: ForecastContext
+
+A factory receives a :class:`ForecastContext` (split, held-out scene, the fold's training files,
+seed) and returns an object with ``predict(batch, n_samples) -> (N, S, H, 2)`` in the batch's frame
+(:class:`navzoo.forecast.baselines.Forecaster`). Built in: ``constant_velocity`` and ``sfm``.
+
+Protocol: windows of 8 observed + 12 future steps with their neighbours, agent-centric
+(:mod:`navzoo.forecast.data`); ``--split val`` tests on ``val/<scene>_val.txt`` (one fold, trained on
+the ``train`` files), ``--split loo`` tests on each scene's ``all_data`` with the other scenes'
+``all_data`` as the fold's training files. Per scene: minADE and minFDE over ``--samples`` samples
+(m, averaged over windows); ``average``: the unweighted mean over scenes (the usual ETH/UCY
+convention). Every model sees exactly the same windows.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "ForecastContext",
+    "ForecasterFactory",
+    "register_forecaster",
+    "unregister_forecaster",
+    "forecaster_names",
+    "make_forecaster",
+    "score",
+    "evaluate_forecasts",
+    "format_table",
+    "add_arguments",
+    "run_cli",
+]
+
+
+@dataclass(frozen=True)
+class ForecastContext:
+    """What a forecaster factory knows about the fold it is made for.
+
+    Attributes:
+        data_dir: The ETH/UCY folder evaluated.
+        split: ``"val"`` or ``"loo"``.
+        test_scene: The held-out scene of a ``"loo"`` fold; None for ``"val"``.
+        train_files: Scene -> file of the fold's training data (a trained model must not have seen
+            the test files; e.g. pick the checkpoint trained without ``test_scene``).
+        seed: Seed for stochastic forecasters.
+    """
+
+    data_dir: Path
+    split: str
+    test_scene: str | None
+    train_files: Mapping[str, Path] = field(default_factory=dict)
+    seed: int = 0
+
+
+ForecasterFactory = Callable[[ForecastContext], Any]
+_REGISTRY: dict[str, ForecasterFactory] = {}
+
+
+def register_forecaster(name: str, factory: ForecasterFactory, overwrite: bool = False) -> None:
+    """Add a forecaster under ``name`` (the key it gets in the results).
+
+    Raises:
+        ValueError: If the name is empty or taken (and ``overwrite`` is False), or factory is not callable.
+    """
+    if not isinstance(name, str) or not name or "," in name:
+        raise ValueError(f"forecaster name must be a non-empty string without commas, got {name!r}")
+    if not callable(factory):
+        raise ValueError(f"factory for {name!r} must be callable, got {type(factory).__name__}")
+    if name in _REGISTRY and not overwrite:
+        raise ValueError(f"forecaster {name!r} is already registered (pass overwrite=True to replace it)")
+    _REGISTRY[name] = factory
+
+
+def unregister_forecaster(name: str) -> None:
+    """Remove a registered forecaster.
+
+    Raises:
+        ValueError: If ``name`` is not registered.
+    """
+    if name not in _REGISTRY:
+        raise ValueError(f"unknown forecaster {name!r}; registered: {forecaster_names()}")
+    del _REGISTRY[name]
+
+
+def forecaster_names() -> list[str]:
+    """Registered forecaster names, in registration order."""
+    return list(_REGISTRY)
+
+
+def make_forecaster(name: str, context: ForecastContext) -> Any:
+    """Build the forecaster ``name`` for a fold.
+
+    Raises:
+        ValueError: If ``name`` is not registered.
+    """
+    if name not in _REGISTRY:
+        raise ValueError(f"unknown forecaster {name!r}; registered: {forecaster_names()}")
+    return _REGISTRY[name](context)
+
+
+def _constant_velocity(context: ForecastContext) -> Any:
+    from navzoo.forecast.baselines import ConstantVelocity
+
+    return ConstantVelocity()
+
+
+def _sfm(context: ForecastContext) -> Any:
+    from navzoo.forecast.baselines import SocialForceForecaster
+
+    return SocialForceForecaster(seed=context.seed)
+
+
+register_forecaster("constant_velocity", _constant_velocity)
+register_forecaster("sfm", _sfm)
+
+
+def score(forecaster: Any, batch: Mapping[str, Any], n_samples: int) -> dict[str, float]:
+    """``{"min_ade", "min_fde"}`` (m, mean over windows) of one forecaster on one batch.
+
+    Raises:
+        ValueError: If the prediction does not have shape (N, n_samples, H, 2).
+    """
+    from navzoo.forecast.metrics import min_ade, min_fde
+
+    fut = np.asarray(batch["fut"])
+    pred = np.asarray(forecaster.predict(batch, n_samples))
+    expected = (fut.shape[0], n_samples, *fut.shape[1:])
+    if pred.shape != expected:
+        raise ValueError(f"{type(forecaster).__name__}.predict returned shape {pred.shape}, expected {expected}")
+    return {"min_ade": float(min_ade(pred, fut).mean()), "min_fde": float(min_fde(pred, fut).mean())}
+
+
+def _even_subset(n: int, max_windows: int | None) -> np.ndarray:
+    if not max_windows or n <= max_windows:
+        return np.arange(n)
+    return np.unique(np.linspace(0, n - 1, max_windows).round().astype(np.int64))
+
+
+def evaluate_forecasts(
+    data_dir: str | Path | None = None,
+    split: str = "val",
+    samples: int = 20,
+    models: Sequence[str] | None = None,
+    scenes: Sequence[str] | None = None,
+    max_windows: int | None = None,
+    seed: int = 0,
+    k_neighbors: int = 16,
+    radius: float = 10.0,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Evaluate forecasters on a split; see the module doc for the protocol.
+
+    Args:
+        data_dir: ETH/UCY folder (default: the shared ``eth_ucy``).
+        split: ``"val"`` or ``"loo"``.
+        samples: Samples per window S (min over samples).
+        models: Forecaster names (default: all registered).
+        scenes: Only these test scenes (default: all of the split).
+        max_windows: At most this many windows per scene, evenly spaced over the file (same windows
+            for every model); None or 0 for all.
+        seed: Passed to the factories.
+        k_neighbors: Neighbour slots per window.
+        radius: Neighbour radius (m).
+        progress: Called with a line of text after each scene and model.
+
+    Returns:
+        ``{<model>: {"min_ade", "min_fde"} (mean over scenes), "scenes": {scene: {"windows", "dt",
+        "seconds": {<model>: s}, <model>: {"min_ade", "min_fde"}}}, "config": {...}}``.
+
+    Raises:
+        ValueError: On an unknown split, model or scene, or ``samples < 1``.
+    """
+    from navzoo.forecast.data import default_data_dir, discover, load_windows, split_files, subset
+
+    if samples < 1:
+        raise ValueError(f"samples must be >= 1, got {samples!r}")
+    root = Path(data_dir) if data_dir is not None else default_data_dir()
+    names = list(models) if models else forecaster_names()
+    for name in names:
+        if name not in _REGISTRY:
+            raise ValueError(f"unknown forecaster {name!r}; registered: {forecaster_names()}")
+    files = discover(root)
+    if split == "val":
+        train, test = split_files(root, "val")
+        folds = [(None, train, test)]
+    elif split == "loo":
+        folds = []
+        for scene in files["all"]:
+            train, test = split_files(root, "loo", scene)
+            folds.append((scene, train, test))
+    else:
+        raise ValueError(f"unknown split {split!r}; expected 'val' or 'loo'")
+    available = sorted({s for _, _, test in folds for s in test})
+    if scenes:
+        unknown = sorted(set(scenes) - set(available))
+        if unknown:
+            raise ValueError(f"unknown scene(s) {unknown} for split {split!r}; scenes: {available}")
+
+    per_scene: dict[str, dict[str, Any]] = {}
+    for held_out, train, test in folds:
+        chosen = {s: p for s, p in test.items() if not scenes or s in scenes}
+        if not chosen:
+            continue
+        context = ForecastContext(data_dir=root, split=split, test_scene=held_out, train_files=train, seed=seed)
+        forecasters = {name: make_forecaster(name, context) for name in names}
+        for scene, path in chosen.items():
+            batch = load_windows(path, k_neighbors=k_neighbors, radius=radius)
+            total = int(batch["hist"].shape[0])
+            batch = subset(batch, _even_subset(total, max_windows))
+            n = int(batch["hist"].shape[0])
+            if n == 0:
+                raise ValueError(f"scene {scene!r} ({path}) has no window of 20 consecutive frames")
+            entry: dict[str, Any] = {"windows": n, "windows_total": total, "dt": float(batch["dt"][0]),
+                                     "seconds": {}}
+            for name, model in forecasters.items():
+                t0 = time.perf_counter()
+                entry[name] = score(model, batch, samples)
+                entry["seconds"][name] = round(time.perf_counter() - t0, 3)
+                if progress:
+                    progress(f"{scene}: {name} minADE {entry[name]['min_ade']:.3f} minFDE "
+                             f"{entry[name]['min_fde']:.3f} ({n} windows, {entry['seconds'][name]:.1f} s)")
+            per_scene[scene] = entry
+
+    result: dict[str, Any] = {}
+    for name in names:
+        result[name] = {key: float(np.mean([per_scene[s][name][key] for s in per_scene]))
+                        for key in ("min_ade", "min_fde")}
+    result["scenes"] = per_scene
+    result["config"] = {"data": str(root), "split": split, "samples": samples, "obs_len": 8, "pred_len": 12,
+                        "k_neighbors": k_neighbors, "radius": radius, "max_windows": max_windows or None,
+                        "seed": seed, "average": "unweighted mean over scenes"}
+    return result
+
+
+def format_table(result: Mapping[str, Any]) -> str:
+    """A Markdown table of minADE / minFDE per scene and model, with the average row."""
+    names = [k for k in result if k not in ("scenes", "config")]
+    head = "| scene | windows | " + " | ".join(f"{n} minADE / minFDE (m)" for n in names) + " |"
+    rows = [head, "|" + "---|" * (len(names) + 2)]
+    for scene, entry in result["scenes"].items():
+        cells = " | ".join(f"{entry[n]['min_ade']:.3f} / {entry[n]['min_fde']:.3f}" for n in names)
+        rows.append(f"| {scene} | {entry['windows']} | {cells} |")
+    cells = " | ".join(f"**{result[n]['min_ade']:.3f} / {result[n]['min_fde']:.3f}**" for n in names)
+    rows.append(f"| average | {sum(e['windows'] for e in result['scenes'].values())} | {cells} |")
+    return "\n".join(rows)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``navzoo eval forecast``."""
+    parser.add_argument("--data", default=None,
+                        help="folder of ETH/UCY-format files (all_data/, train/, val/ or flat *.txt); "
+                             "default ../shared/data/trajectories/eth_ucy")
+    parser.add_argument("--split", default="val", choices=["val", "loo"],
+                        help="val: the files' temporal split; loo: leave one scene out (default val)")
+    parser.add_argument("--samples", type=int, default=20, help="samples per window for minADE/minFDE (default 20)")
+    parser.add_argument("--models", default=None,
+                        help="comma-separated forecasters (default: all registered, e.g. constant_velocity,sfm)")
+    parser.add_argument("--scenes", default=None, help="comma-separated test scenes (default: all)")
+    parser.add_argument("--max-windows", type=int, default=0,
+                        help="at most this many windows per scene, evenly spaced (default 0: all)")
+    parser.add_argument("--neighbors", type=int, default=16, help="neighbour slots per window (default 16)")
+    parser.add_argument("--radius", type=float, default=10.0, help="neighbour radius in m (default 10)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", default=None, help="also write the JSON result to this file")
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+
+
+def _names(text: str | None) -> list[str] | None:
+    return [t.strip() for t in text.split(",") if t.strip()] if text else None
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    """Run ``navzoo eval forecast`` from parsed arguments; prints the table or the JSON."""
+    import sys
+
+    result = evaluate_forecasts(
+        data_dir=args.data, split=args.split, samples=args.samples, models=_names(args.models),
+        scenes=_names(args.scenes), max_windows=args.max_windows, seed=args.seed, k_neighbors=args.neighbors,
+        radius=args.radius, progress=None if args.json else (lambda line: print(line, file=sys.stderr, flush=True)),
+    )
+    text = json.dumps(result)
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(json.dumps(result, indent=2) + "\n")
+    print(text if args.json else format_table(result))
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m navzoo.forecast.evaluate``: the same as ``navzoo eval forecast``."""
+    parser = argparse.ArgumentParser(prog="navzoo eval forecast", description=__doc__.split("\n")[0])
+    add_arguments(parser)
+    return run_cli(parser.parse_args(argv))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

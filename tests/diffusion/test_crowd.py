@@ -1,0 +1,82 @@
+"""The diffusion crowd in the env: plans start at the people, follow guidance, run in both body models."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from pettingzoo.test import parallel_api_test
+
+from navzoo.agents.crowd import CrowdPolicy
+from navzoo.agents.diffusion.crowd import DiffusionCrowd, _ahead_on_path
+from navzoo.agents.diffusion.model import DiffusionConfig, TrajectoryDiffusion
+from navzoo.agents.diffusion.trainer import TrainConfig, export, train
+from navzoo.envs.nav_env import NavEnv
+from navzoo.envs.wrappers import FrozenAgents
+
+CFG = DiffusionConfig(base=8, mults=(1, 2), cond_dim=32, map_cells=32, steps=20, sample_steps=4)
+
+
+@pytest.fixture(scope="module")
+def model_dir(tmp_path_factory):
+    """A tiny model trained for a few steps on straight walking (enough to exercise the plumbing)."""
+    rng = np.random.default_rng(0)
+    n = 64
+    speed = rng.uniform(0.8, 1.4, n)
+    k, kf = np.arange(-7, 1), np.arange(1, 13)
+    w = {"hist": np.stack([k[None] * 0.4 * speed[:, None], np.zeros((n, 8))], -1),
+         "fut": np.stack([kf[None] * 0.4 * speed[:, None], np.zeros((n, 12))], -1), "dt": np.full(n, 0.4)}
+    tmp = tmp_path_factory.mktemp("diffusion")
+    torch.manual_seed(0)
+    train(CFG, TrainConfig(steps=30, batch_size=16), w, tmp / "run", log=lambda *_: None)
+    return export(tmp / "run/checkpoint", tmp / "model")
+
+
+def test_ahead_on_path_walks_the_polyline():
+    path = np.array([[1.0, 0.0], [1.0, 2.0]])
+    np.testing.assert_allclose(_ahead_on_path(path, np.zeros(2), 0.5), [0.5, 0.0])
+    np.testing.assert_allclose(_ahead_on_path(path, np.zeros(2), 2.0), [1.0, 1.0])
+    np.testing.assert_allclose(_ahead_on_path(path, np.zeros(2), 9.0), [1.0, 2.0])
+
+
+def test_missing_model_is_a_clear_error(tmp_path):
+    with pytest.raises(FileNotFoundError, match="navzoo train diffusion"):
+        DiffusionCrowd(tmp_path)
+    with pytest.raises(ValueError, match="n_samples"):
+        DiffusionCrowd(TrajectoryDiffusion(CFG), n_samples=0)
+
+
+def test_kinematic_diffusion_crowd_plans_from_the_people_and_walks(model_dir):
+    env = NavEnv(scene="lobby", n_robots=1, n_humans=6, crowd_model="diffusion", diffusion_model=str(model_dir),
+                 diffusion_samples=2, time_limit=8.0)
+    w = FrozenAgents(env, lambda a: a.startswith("human_"), CrowdPolicy("diffusion"))
+    w.reset(seed=3)
+    start = env.pos[1:].copy()
+    plan = env.diffusion.plan_now(env)
+    assert plan.shape == (6, 13, 2) and np.isfinite(plan).all()
+    np.testing.assert_allclose(plan[:, 0], start, atol=1e-6)
+    for _ in range(40):
+        w.step({"robot_0": np.zeros(2, dtype=np.float32)})
+    assert env.diffusion.plans_made >= 2  # replanned every 2 s
+    assert np.linalg.norm(env.pos[1:] - start, axis=1).mean() > 1.0  # people walk (4 s at ~1.2 m/s)
+    # Same seed, same plans.
+    w.reset(seed=3)
+    np.testing.assert_allclose(env.diffusion.plan_now(env), plan)
+    w.close()
+
+
+def test_diffusion_crowd_passes_the_parallel_api_with_amp_bodies(model_dir):
+    env = NavEnv(scene="lobby", n_robots=1, n_humans=2, crowd_model="diffusion", diffusion_model=str(model_dir),
+                 human_model="amp", dt=1 / 30, max_episode_steps_override=40)
+    parallel_api_test(env, num_cycles=40)
+    env.reset(seed=0)
+    assert env.amp.paths.shape[0] == 2 and np.isfinite(env.amp.paths).all()
+    np.testing.assert_allclose(env.amp.paths[:, 0], env.pos[1:], atol=0.05)
+    env.close()
+
+
+def test_crowd_model_name_is_validated():
+    with pytest.raises(ValueError, match="'diffusion'"):
+        NavEnv(scene="lobby", crowd_model="trace")
+    with pytest.raises(ValueError, match="diffusion_samples"):
+        NavEnv(scene="lobby", crowd_model="diffusion", diffusion_samples=0)

@@ -1,0 +1,116 @@
+"""Trajectory diffusion model: config checks, conditioning invariances, learning, sampling, guidance."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from navzoo.agents.diffusion.guidance import agent_collision_cost, combine, map_collision_cost, target_cost
+from navzoo.agents.diffusion.model import (
+    DiffusionConfig,
+    TrajectoryDiffusion,
+    cosine_alphas_cumprod,
+    integrate,
+)
+
+SMALL = DiffusionConfig(base=16, mults=(1, 2), cond_dim=64, map_cells=16, steps=50, sample_steps=5)
+
+
+def _straight(B: int, g: torch.Generator, K: int = 3) -> dict[str, torch.Tensor]:
+    """People walking along +x at 0.5-1.5 m/s who keep going straight (agent frame, dt 0.4 s)."""
+    speed = 0.5 + torch.rand(B, generator=g)
+    dt = torch.full((B,), 0.4)
+    k = torch.arange(-7, 1).float()
+    hist = torch.stack([k[None] * 0.4 * speed[:, None], torch.zeros(B, 8)], -1)
+    kf = torch.arange(1, 13).float()
+    fut = torch.stack([kf[None] * 0.4 * speed[:, None], torch.zeros(B, 12)], -1)
+    return {"hist": hist, "fut": fut, "dt": dt, "neigh": torch.zeros(B, K, 8, 2),
+            "neigh_mask": torch.zeros(B, K, 8, dtype=torch.bool)}
+
+
+def test_config_is_validated_and_round_trips():
+    assert DiffusionConfig.from_dict(SMALL.to_dict()) == SMALL
+    with pytest.raises(ValueError, match="horizon"):
+        DiffusionConfig(horizon=10, mults=(1, 2, 4))
+    with pytest.raises(ValueError, match="sample_steps"):
+        DiffusionConfig(steps=10, sample_steps=20)
+    with pytest.raises(ValueError, match="unknown DiffusionConfig"):
+        DiffusionConfig.from_dict({"bogus": 1})
+    abar = cosine_alphas_cumprod(100)
+    assert abar.shape == (100,) and torch.all(abar[1:] < abar[:-1]) and 0.99 < abar[0] <= 1 and abar[-1] < 1e-3
+
+
+def test_integrate_starts_at_origin_and_sums_steps():
+    v = torch.ones(2, 12, 2)
+    p = integrate(v, torch.tensor([0.4, 0.5]))
+    torch.testing.assert_close(p[0, 0], torch.tensor([0.4, 0.4]))
+    torch.testing.assert_close(p[1, -1], torch.tensor([6.0, 6.0]))
+
+
+def test_neighbour_order_does_not_matter_and_absent_neighbours_are_ignored():
+    torch.manual_seed(0)
+    m = TrajectoryDiffusion(SMALL).eval()
+    g = torch.Generator().manual_seed(1)
+    b = _straight(4, g)
+    b["neigh"] = torch.randn(4, 3, 8, 2, generator=g)
+    b["neigh_mask"][:, :2] = True
+    c1 = m.cond(b)
+    perm = dict(b, neigh=b["neigh"][:, [1, 0, 2]], neigh_mask=b["neigh_mask"][:, [1, 0, 2]])
+    torch.testing.assert_close(m.cond(perm), c1)
+    moved = dict(b, neigh=b["neigh"].clone())
+    moved["neigh"][:, 2] += 5.0  # the masked-out neighbour moves: no effect
+    torch.testing.assert_close(m.cond(moved), c1)
+    none = dict(b, neigh=torch.zeros(4, 0, 8, 2), neigh_mask=torch.zeros(4, 0, 8, dtype=torch.bool))
+    all_masked = dict(b, neigh_mask=torch.zeros_like(b["neigh_mask"]))
+    torch.testing.assert_close(m.cond(none), m.cond(all_masked))
+
+
+def test_it_learns_straight_walking_and_samples_reproducibly():
+    torch.manual_seed(0)
+    m = TrajectoryDiffusion(SMALL)
+    g = torch.Generator().manual_seed(0)
+    opt = torch.optim.Adam(m.parameters(), 1e-3)
+    first = None
+    for _ in range(250):
+        loss, info = m.loss(_straight(64, g), generator=g)
+        first = info["loss"] if first is None else first
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    assert info["loss"] < 0.2 * first, (first, info)
+    m.eval()
+    b = _straight(16, torch.Generator().manual_seed(5))
+    s1 = m.sample(b, 8, generator=torch.Generator().manual_seed(3))
+    s2 = m.sample(b, 8, generator=torch.Generator().manual_seed(3))
+    assert s1.shape == (16, 8, 12, 2)
+    torch.testing.assert_close(s1, s2)
+    fde = (s1[:, :, -1] - b["fut"][:, None, -1]).norm(dim=-1).min(dim=1).values
+    assert fde.median() < 0.6, fde  # the truth is 2.4-7.2 m ahead
+
+
+def test_guidance_pulls_toward_a_target_and_away_from_walls_and_people():
+    torch.manual_seed(0)
+    m = TrajectoryDiffusion(SMALL).eval()
+    b = _straight(6, torch.Generator().manual_seed(2))
+    gen = lambda: torch.Generator().manual_seed(4)  # noqa: E731
+    target = torch.tensor([[0.0, 3.0]]).repeat(6, 1)
+    plain = m.sample(b, 4, generator=gen())
+    pulled = m.sample(b, 4, generator=gen(), guidance=target_cost(target), guidance_scale=0.05)
+    d_plain = (plain[:, :, -1] - target[:, None]).norm(dim=-1).mean()
+    d_pulled = (pulled[:, :, -1] - target[:, None]).norm(dim=-1).mean()
+    assert d_pulled < 0.5 * d_plain, (d_plain, d_pulled)
+
+    # A wall at y = 0.5 (distance field on a 6 m crop) and a person standing at (1, -0.5).
+    C, extent = 32, 6.0
+    ys = (torch.arange(C) + 0.5) / C * extent - extent / 2
+    dist = (0.5 - ys).clamp(min=0.0)[:, None].repeat(1, C)[None].repeat(6, 1, 1)
+    wall = map_collision_cost(dist, extent, radius=0.3, buffer=0.1)
+    others = torch.tensor([1.0, -0.5]).repeat(6, 1, 12, 1)
+    people = agent_collision_cost(others, torch.ones(6, 1, dtype=torch.bool))
+    both = combine(wall, people, None)
+    idx = torch.arange(6).repeat_interleave(4)
+    before = both(plain.reshape(24, 12, 2), idx).mean()
+    guided = m.sample(b, 4, generator=gen(), guidance=both, guidance_scale=0.02)
+    after = both(guided.reshape(24, 12, 2), idx).mean()
+    assert after < 0.5 * before, (before, after)
+    assert combine(None) is None
