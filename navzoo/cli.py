@@ -56,6 +56,10 @@ def build_parser() -> argparse.ArgumentParser:
     from navzoo.agents.amp.train import add_arguments as add_amp_arguments
 
     add_amp_arguments(tsub.add_parser("amp", help="the AMP pedestrian controller (resumable; see docs/amp_training.md)"))
+    from navzoo.agents.diffusion.train import add_arguments as add_diffusion_arguments
+
+    add_diffusion_arguments(tsub.add_parser(
+        "diffusion", help="the trajectory diffusion model on ETH/UCY (resumable; see docs/crowd.md)"))
 
     ev = sub.add_parser("eval", help="evaluate a component of navzoo")
     esub = ev.add_subparsers(dest="eval_command", metavar="WHAT")
@@ -203,6 +207,10 @@ def _train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         result = run(targs)
         print(json.dumps(result, default=str) if args.json else result)
         return 0
+    if args.train_command == "diffusion":
+        from navzoo.agents.diffusion.train import run_cli as run_diffusion
+
+        return run_diffusion(args)
     parser.parse_args(["train", "--help"])
     return 2
 

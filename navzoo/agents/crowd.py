@@ -27,8 +27,8 @@ class CrowdPolicy:
             docs/crowd_models.md) or ``"orca_rvo2"`` (the same solver with RVO2's exact
             semantics and CrowdNav's settings: maximum speed = preferred speed, discs 0.01 m larger
             inside ORCA, slowing down within 1 m of the goal, as CrowdNav's pedestrians) or
-            ``"diffusion"`` (the env's :class:`navzoo.agents.diffusion.crowd.DiffusionCrowd` plans,
-            walked step by step).
+            ``"diffusion"`` (the env's :class:`navzoo.agents.diffusion.crowd.DiffusionCrowd` plans as
+            preferred velocities, social force for the bodies in between).
         see_robots: whether people react to robots (False = CrowdNav's invisible robot).
         sfm_params / orca_params: model parameters.
     """
@@ -58,16 +58,19 @@ class CrowdPolicy:
         h = np.arange(R, N)
         if h.size == 0:
             return np.zeros((0, 2))
-        if self.model == "diffusion":
+        pos, vel, rad = env.pos[h], env.vel[h], env.radius[h]
+        if self.model == "diffusion":  # the sampled plans set where and how fast; social force avoids
             if env.diffusion is None:
                 raise ValueError("CrowdPolicy('diffusion') needs an env made with crowd_model='diffusion'")
-            return env.diffusion.velocities(env)
-        pos, vel, rad = env.pos[h], env.vel[h], env.radius[h]
-        # Toward the next A* waypoint, with turn-taking; CrowdNav's people slow down within 1 m of the goal.
-        pref = env.human_preferred_velocity(slow_radius=1.0 if self.model == "orca_rvo2" else 0.5)
+            pref = env.diffusion.preferred_velocities(env)
+            if env.turn_taking is not None:
+                pref = env.turn_taking.apply(env.sim_time, pref)
+        else:
+            # Toward the next A* waypoint, with turn-taking; CrowdNav's people slow down within 1 m of the goal.
+            pref = env.human_preferred_velocity(slow_radius=1.0 if self.model == "orca_rvo2" else 0.5)
         vmax = np.full(h.size, env.config.human_max_speed)
         robots = np.flatnonzero(env.alive[:R]) if self.see_robots else np.zeros(0, dtype=int)
-        if self.model == "sfm":
+        if self.model in ("sfm", "diffusion"):
             return social_force_velocities(
                 pos, vel, pref, rad, vmax, env.config.dt, self.sfm_params, env.segments,
                 others_pos=env.pos[robots], others_vel=env.vel[robots], others_radius=env.radius[robots],

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -123,8 +124,22 @@ def _sfm(context: ForecastContext) -> Any:
     return SocialForceForecaster(seed=context.seed)
 
 
+def _diffusion(context: ForecastContext) -> Any:
+    import os
+
+    from navzoo.agents.diffusion.forecaster import MODEL_ENV, DiffusionForecaster
+
+    if context.split == "loo" and not os.environ.get(MODEL_ENV):
+        raise ValueError(
+            "the shipped diffusion model was trained on the train part of all five scenes, so it has seen every "
+            "leave-one-scene-out test scene; train one per held-out scene (navzoo train diffusion --split loo "
+            f"--test-scene {context.test_scene} --export DIR) and set {MODEL_ENV}=DIR")
+    return DiffusionForecaster(seed=context.seed)
+
+
 register_forecaster("constant_velocity", _constant_velocity)
 register_forecaster("sfm", _sfm)
+register_forecaster("diffusion", _diffusion)
 
 
 def score(forecaster: Any, batch: Mapping[str, Any], n_samples: int) -> dict[str, float]:
@@ -167,7 +182,8 @@ def evaluate_forecasts(
         data_dir: ETH/UCY folder (default: the shared ``eth_ucy``).
         split: ``"val"`` or ``"loo"``.
         samples: Samples per window S (min over samples).
-        models: Forecaster names (default: all registered).
+        models: Forecaster names (default: all registered; under ``"loo"`` without
+            ``$NAVZOO_DIFFUSION_MODEL`` the diffusion model is left out, as it saw every scene).
         scenes: Only these test scenes (default: all of the split).
         max_windows: At most this many windows per scene, evenly spaced over the file (same windows
             for every model); None or 0 for all.
@@ -189,6 +205,8 @@ def evaluate_forecasts(
         raise ValueError(f"samples must be >= 1, got {samples!r}")
     root = Path(data_dir) if data_dir is not None else default_data_dir()
     names = list(models) if models else forecaster_names()
+    if not models and split == "loo" and not os.environ.get("NAVZOO_DIFFUSION_MODEL"):
+        names = [n for n in names if n != "diffusion"]  # the shipped model saw every scene (see _diffusion)
     for name in names:
         if name not in _REGISTRY:
             raise ValueError(f"unknown forecaster {name!r}; registered: {forecaster_names()}")

@@ -61,3 +61,22 @@ def test_bad_windows_and_tampered_checkpoints_are_rejected(tmp_path):
         f.write(b"x")
     with pytest.raises(ValueError, match="sha256"):
         load_model(model_dir)
+
+
+def test_augment_is_a_similarity_of_each_window_and_drops_neighbours():
+    from navzoo.agents.diffusion.trainer import augment
+
+    w = _windows(32)
+    w["neigh"] = np.random.default_rng(1).normal(size=(32, 2, 8, 2))
+    w["neigh_mask"] = np.ones((32, 2, 8), dtype=bool)
+    a = augment(w, np.random.default_rng(0), hist_noise=0.0, drop_neighbor=0.5)
+    # A similarity about the origin: ratios of distances between any two points are kept.
+    d0 = np.linalg.norm(w["fut"][:, -1], axis=-1) / np.linalg.norm(w["hist"][:, 0], axis=-1)
+    d1 = np.linalg.norm(a["fut"][:, -1], axis=-1) / np.linalg.norm(a["hist"][:, 0], axis=-1)
+    np.testing.assert_allclose(d0, d1)
+    np.testing.assert_allclose(a["hist"][:, -1], 0.0, atol=1e-12)  # the person stays at the origin
+    assert 0.2 < 1 - a["neigh_mask"][:, :, 0].mean() < 0.8
+    assert np.all(a["neigh"][~a["neigh_mask"]] == 0.0)
+    noisy = augment(w, np.random.default_rng(0))
+    np.testing.assert_allclose(noisy["hist"][:, -1], 0.0, atol=1e-12)
+    assert np.abs(noisy["hist"][:, :-1] - a["hist"][:, :-1]).max() > 0.005

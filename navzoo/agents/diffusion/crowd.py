@@ -13,9 +13,11 @@ Every ``replan_s`` seconds (2 s) all pedestrians of a world are planned in one b
    global waypoint), and samples are pushed off other people's current plans and off walls;
 4. of each person's samples the one of lowest guidance cost is kept, in world coordinates.
 
-Kinematic pedestrians then walk their plan (:meth:`velocities`: the velocity that reaches the plan's
-point one control step ahead); AMP pedestrians get it as their target trajectory
-(:meth:`plan_positions`). People who stand still with no history get a walking-in history along their
+Kinematic pedestrians take the plan as their preferred velocity (:meth:`preferred_velocities`:
+toward the plan's point 0.8 s ahead, at the plan's pace) and the social force model keeps their
+bodies off walls and each other between plans (the :class:`navzoo.agents.crowd.CrowdPolicy`
+``"diffusion"`` model); :meth:`velocities` walks the plan exactly instead. AMP pedestrians get the
+plan as their target trajectory (:meth:`plan_positions`). People who stand still with no history get a walking-in history along their
 path, so that the first plan does not start from rest.
 """
 
@@ -111,7 +113,7 @@ class DiffusionCrowd:
         self.n = N
         direction = np.zeros((N, 2))
         for i in range(N):
-            ahead = _ahead_on_path(env.paths[i], env.pos[i], 1.0) - env.pos[i]
+            ahead = _ahead_on_path(env.paths[i][env.wp_index[i]:], env.pos[i], 1.0) - env.pos[i]
             norm = np.linalg.norm(ahead)
             direction[i] = ahead / norm if norm > 1e-6 else np.array([np.cos(env.yaw[i]), np.sin(env.yaw[i])])
         speed = np.where(env.is_robot, 0.0, env.v_pref)
@@ -174,7 +176,8 @@ class DiffusionCrowd:
         # Guidance: the path point v_pref x horizon ahead, others' current plans, the scene's walls.
         horizon_s = H * MODEL_DT
         standing = env.arrived[people] | env.human_fallen
-        target_w = np.array([_ahead_on_path(env.paths[i], env.pos[i], env.v_pref[i] * horizon_s) for i in people])
+        target_w = np.array([_ahead_on_path(env.paths[i][env.wp_index[i]:], env.pos[i], env.v_pref[i] * horizon_s)
+                             for i in people])
         target = fdata.to_local(target_w[:, None, :], local)[:, 0]
         t_w, a_w, m_w = self.weights
         costs = [target_cost(torch.as_tensor(target, dtype=torch.float32), t_w,
@@ -241,6 +244,18 @@ class DiffusionCrowd:
     def maybe_plan(self, env: NavEnv, force: bool = False) -> None:
         if force or self.plan is None or env.sim_time - self.plan_time >= self.replan_s - 1e-9:
             self.plan_now(env)
+
+    def preferred_velocities(self, env: NavEnv, lookahead: float = 0.8) -> np.ndarray:
+        """World velocities (H, 2) toward each plan's point ``lookahead`` seconds ahead, at the plan's
+        pace: the preferred velocity that a local collision-avoidance model then follows."""
+        self.maybe_plan(env)
+        R = env.n_robots
+        t_rel = env.sim_time - self.plan_time + lookahead
+        ahead = np.stack([self._plan_at(j, np.array([t_rel]))[0] for j in range(env.n_humans)]) if env.n_humans else np.zeros((0, 2))
+        v = (ahead - env.pos[R:]) / lookahead
+        speed = np.linalg.norm(v, axis=1, keepdims=True)
+        vmax = env.config.human_max_speed
+        return np.where(speed > vmax, v / np.maximum(speed, 1e-9) * vmax, v)
 
     def velocities(self, env: NavEnv) -> np.ndarray:
         """World velocities (H, 2) that take kinematic pedestrians to their plan one step ahead."""

@@ -52,6 +52,7 @@ class DiffusionConfig:
         cond_drop: probability of dropping neighbours and map per sample during training.
         vel_scale: velocities are divided by this (m/s) inside the network.
         pos_loss: weight of the position loss (the velocity loss has weight 1).
+        dropout: dropout inside the U-Net's residual blocks and the conditioning MLPs (training only).
     """
 
     history: int = 8
@@ -65,6 +66,7 @@ class DiffusionConfig:
     cond_drop: float = 0.1
     vel_scale: float = 1.5
     pos_loss: float = 1.0
+    dropout: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("history", "horizon", "base", "cond_dim", "steps", "sample_steps"):
@@ -81,6 +83,8 @@ class DiffusionConfig:
         if isinstance(self.map_cells, bool) or not isinstance(self.map_cells, int) or self.map_cells < 0 or (
                 self.map_cells and self.map_cells % 8):
             raise ValueError(f"DiffusionConfig.map_cells must be 0 or a positive multiple of 8, got {self.map_cells!r}")
+        if not 0.0 <= self.dropout < 1.0:
+            raise ValueError(f"DiffusionConfig.dropout must be in [0, 1), got {self.dropout!r}")
         if not 0.0 <= self.cond_drop < 1.0:
             raise ValueError(f"DiffusionConfig.cond_drop must be in [0, 1), got {self.cond_drop!r}")
         for name in ("vel_scale",):
@@ -126,8 +130,9 @@ def _timestep_embedding(t: Tensor, dim: int) -> Tensor:
 
 
 class _ResBlock(nn.Module):
-    def __init__(self, cin: int, cout: int, emb: int, kernel: int = 5) -> None:
+    def __init__(self, cin: int, cout: int, emb: int, kernel: int = 5, dropout: float = 0.0) -> None:
         super().__init__()
+        self.drop = nn.Dropout(dropout)
         self.conv1 = nn.Conv1d(cin, cout, kernel, padding=kernel // 2)
         self.norm1 = nn.GroupNorm(min(8, cout), cout)
         self.film = nn.Linear(emb, 2 * cout)
@@ -138,7 +143,7 @@ class _ResBlock(nn.Module):
     def forward(self, x: Tensor, emb: Tensor) -> Tensor:
         h = F.mish(self.norm1(self.conv1(x)))
         scale, shift = self.film(emb).unsqueeze(-1).chunk(2, dim=1)
-        h = h * (1 + scale) + shift
+        h = self.drop(h * (1 + scale) + shift)
         h = F.mish(self.norm2(self.conv2(h)))
         return h + self.skip(x)
 
@@ -150,8 +155,8 @@ class _Conditioner(nn.Module):
         super().__init__()
         T, d = cfg.history, cfg.cond_dim
         self.cfg = cfg
-        self.ego = nn.Sequential(nn.Linear(4 * T, 128), nn.Mish(), nn.Linear(128, 128))
-        self.neigh = nn.Sequential(nn.Linear(5 * T, 128), nn.Mish(), nn.Linear(128, 128))
+        self.ego = nn.Sequential(nn.Linear(4 * T, 128), nn.Mish(), nn.Dropout(cfg.dropout), nn.Linear(128, 128))
+        self.neigh = nn.Sequential(nn.Linear(5 * T, 128), nn.Mish(), nn.Dropout(cfg.dropout), nn.Linear(128, 128))
         self.no_neigh = nn.Parameter(torch.zeros(128))
         if cfg.map_cells:
             self.map = nn.Sequential(
@@ -229,14 +234,14 @@ class TrajectoryDiffusion(nn.Module):
         self.pool = nn.ModuleList()
         c = chans[0]
         for i, ch in enumerate(chans):
-            self.down.append(_ResBlock(c, ch, emb))
+            self.down.append(_ResBlock(c, ch, emb, dropout=cfg.dropout))
             c = ch
             self.pool.append(nn.Conv1d(ch, ch, 3, stride=2, padding=1) if i < len(chans) - 1 else nn.Identity())
-        self.mid = _ResBlock(c, c, emb)
+        self.mid = _ResBlock(c, c, emb, dropout=cfg.dropout)
         self.up = nn.ModuleList()
         self.unpool = nn.ModuleList()
         for i, ch in reversed(list(enumerate(chans))):
-            self.up.append(_ResBlock(c + ch, ch, emb))
+            self.up.append(_ResBlock(c + ch, ch, emb, dropout=cfg.dropout))
             c = ch
             self.unpool.append(nn.ConvTranspose1d(ch, chans[i - 1], 4, stride=2, padding=1) if i > 0 else nn.Identity())
             if i > 0:

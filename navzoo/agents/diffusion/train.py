@@ -52,7 +52,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--time-limit-s", type=float, default=None, help="stop (with a checkpoint) after this long")
     parser.add_argument("--ckpt-every", type=int, default=TrainConfig.ckpt_every)
     parser.add_argument("--eval-every", type=int, default=TrainConfig.eval_every)
-    parser.add_argument("--base", type=int, default=DiffusionConfig.base, help="U-Net width of the first level")
+    parser.add_argument("--base", type=int, default=16, help="U-Net width of the first level")
+    parser.add_argument("--dropout", type=float, default=0.1)
+    parser.add_argument("--cond-drop", type=float, default=0.2, help="probability of dropping neighbours (and map)")
+    parser.add_argument("--weight-decay", type=float, default=1e-4)
+    parser.add_argument("--no-augment", action="store_true", help="train on the windows as they are")
     parser.add_argument("--export", default=None, metavar="DIR", help="write the trained model here at the end")
     parser.add_argument("--json", action="store_true", help="print the final summary as JSON")
 
@@ -68,9 +72,11 @@ def run_cli(args: argparse.Namespace) -> int:
 
     log(f"{sum(desc['train_windows'].values())} training windows {desc['train_windows']}, "
         f"{sum(desc['val_windows'].values())} validation windows, loaded in {time.time() - t0:.1f} s")
-    model_cfg = DiffusionConfig(base=args.base, map_cells=0)  # ETH/UCY windows carry no map (docs/crowd.md)
+    # ETH/UCY windows carry no map (docs/crowd.md); 16k windows call for a small, regularised model.
+    model_cfg = DiffusionConfig(base=args.base, map_cells=0, dropout=args.dropout, cond_drop=args.cond_drop)
     cfg = TrainConfig(steps=args.steps, batch_size=args.batch_size, lr=args.lr, device=args.device, seed=args.seed,
-                      time_limit_s=args.time_limit_s, ckpt_every=args.ckpt_every, eval_every=args.eval_every)
+                      time_limit_s=args.time_limit_s, ckpt_every=args.ckpt_every, eval_every=args.eval_every,
+                      weight_decay=args.weight_decay, augment=not args.no_augment)
     command = "navzoo train diffusion " + " ".join(sys.argv[3:] if sys.argv[1:3] == ["train", "diffusion"] else sys.argv[1:])
     summary = train(model_cfg, cfg, train_w, args.out, val_w, log=log, extra_meta={"data": desc})
     if args.export:

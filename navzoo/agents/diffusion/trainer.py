@@ -51,6 +51,8 @@ class TrainConfig:
         seed: seed of the minibatch sampler, the diffusion noise and the weights.
         device: torch device.
         time_limit_s: stop (after a checkpoint) after this many seconds; None = no limit.
+        weight_decay: AdamW weight decay.
+        augment: agent-frame augmentation of every minibatch (:func:`augment`).
     """
 
     steps: int = 40_000
@@ -62,6 +64,44 @@ class TrainConfig:
     seed: int = 0
     device: str = "cpu"
     time_limit_s: float | None = None
+    weight_decay: float = 1e-4
+    augment: bool = True
+
+
+def augment(windows: dict[str, np.ndarray], rng: np.random.Generator, mirror: float = 0.5, max_turn_deg: float = 15.0,
+            scale: tuple[float, float] = (0.85, 1.15), drop_neighbor: float = 0.2, hist_noise: float = 0.02) -> dict[str, np.ndarray]:
+    """Random agent-frame augmentation of a minibatch (16k real windows are few for a diffusion model).
+
+    Per window: a mirror image across the heading axis (left/right) with probability ``mirror``, a turn
+    about the current position by up to ``max_turn_deg`` (the heading estimate of the last step is
+    noisy), a common speed factor from ``scale`` (all positions scaled), each neighbour dropped with
+    probability ``drop_neighbor`` and Gaussian noise of ``hist_noise`` m on the observed points (the
+    current position stays the origin). Futures get the same linear map, never noise.
+    """
+    n = len(windows["hist"])
+    ang = np.radians(rng.uniform(-max_turn_deg, max_turn_deg, n))
+    c, s = np.cos(ang), np.sin(ang)
+    flip = np.where(rng.random(n) < mirror, -1.0, 1.0)
+    k = rng.uniform(*scale, n)
+    # p' = k R(ang) diag(1, flip) p
+    A = np.stack([np.stack([c, -s * flip], -1), np.stack([s, c * flip], -1)], -2) * k[:, None, None]  # (n, 2, 2)
+
+    def apply(p: np.ndarray) -> np.ndarray:
+        return np.einsum("nij,n...j->n...i", A, p)
+
+    out = dict(windows)
+    hist = apply(np.asarray(windows["hist"], dtype=np.float64))
+    noise = rng.normal(0.0, hist_noise, hist.shape)
+    noise[:, -1] = 0.0
+    out["hist"] = hist + noise
+    out["fut"] = apply(np.asarray(windows["fut"], dtype=np.float64))
+    if windows.get("neigh") is not None and np.asarray(windows["neigh"]).shape[1] > 0:
+        mask = np.asarray(windows["neigh_mask"]).copy()
+        keep = rng.random(mask.shape[:2]) >= drop_neighbor
+        mask &= keep[..., None]
+        out["neigh"] = np.where(mask[..., None], apply(np.asarray(windows["neigh"], dtype=np.float64)), 0.0)
+        out["neigh_mask"] = mask
+    return out
 
 
 def windows_to_batch(windows: dict[str, np.ndarray], idx: np.ndarray | slice, device: str | torch.device = "cpu") -> dict[str, torch.Tensor]:
@@ -163,7 +203,7 @@ def train(
     model = TrajectoryDiffusion(model_cfg).to(cfg.device)
     ema = TrajectoryDiffusion(model_cfg).to(cfg.device)
     ema.load_state_dict(model.state_dict())
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     rng = np.random.default_rng(cfg.seed)
     step = 0
     if (ckpt / "state.pt").exists():
@@ -201,6 +241,9 @@ def train(
         log("interrupted: checkpointing before exit")
 
     old = signal.signal(signal.SIGINT, on_sigint) if _main_thread() else None
+    best = float("inf")
+    if (ckpt / "best.json").exists():
+        best = float(json.loads((ckpt / "best.json").read_text()).get("val_loss", best))
     t0 = time.time()
     metrics_file = open(out / "metrics.jsonl", "a")  # noqa: SIM115
     info: dict[str, float] = {}
@@ -208,7 +251,10 @@ def train(
         model.train()
         while step < cfg.steps and not stop["now"]:
             idx = rng.integers(0, n, cfg.batch_size)
-            batch = windows_to_batch(train_windows, idx, cfg.device)
+            rows = {k: np.asarray(v)[idx] for k, v in train_windows.items() if k in _KEYS and v is not None}
+            if cfg.augment:
+                rows = augment(rows, rng)
+            batch = windows_to_batch(rows, slice(None), cfg.device)
             loss, info = model.loss(batch)
             opt.zero_grad(set_to_none=True)
             loss.backward()
@@ -228,6 +274,11 @@ def train(
                     for k, v in row.items():
                         if k != "step":
                             tb.add_scalar(k, v, step)
+            if "val_loss" in row and row["val_loss"] < best:
+                best = row["val_loss"]
+                _atomic_save({k: v.detach().cpu() for k, v in ema.state_dict().items()},
+                             {"format": FORMAT, "version": VERSION, "model_config": model_cfg.to_dict(), "step": step,
+                              "val_loss": best}, ckpt, "best.pt", "best.json")
             if "val_loss" in row:
                 log(f"step {step}: loss {info['loss']:.4f}, val {row['val_loss']:.4f}, {time.time() - t0:.0f} s")
             if step % cfg.ckpt_every == 0:
@@ -251,14 +302,20 @@ def _main_thread() -> bool:
     return threading.current_thread() is threading.main_thread()
 
 
-def export(checkpoint_dir: str | Path, out: str | Path, card: dict[str, Any] | None = None) -> Path:
-    """Write the EMA weights of a training checkpoint as a shippable model directory."""
-    state, meta = _load_checked(Path(checkpoint_dir), "state.pt", "meta.json")
-    cfg = meta["model_config"]
+def export(checkpoint_dir: str | Path, out: str | Path, card: dict[str, Any] | None = None, best: bool = True) -> Path:
+    """Write the EMA weights of a training checkpoint as a shippable model directory: those of the
+    lowest validation loss so far when ``best`` and the run validated, else the latest."""
+    folder = Path(checkpoint_dir)
+    if best and (folder / "best.pt").exists():
+        weights, meta = _load_checked(folder, "best.pt", "best.json")
+        info = {"trained_steps": meta["step"], "val_loss": meta["val_loss"], "selected": "lowest validation loss"}
+    else:
+        state, meta = _load_checked(folder, "state.pt", "meta.json")
+        weights = dict(state["ema"])
+        info = {"trained_steps": meta["step"], "selected": "latest"}
     out = Path(out)
-    _atomic_save({k: v for k, v in state["ema"].items()},
-                 {"format": FORMAT, "version": VERSION, "model_config": cfg, "trained_steps": meta["step"],
-                  **(card or {})}, out, "model.pt", "config.json")
+    _atomic_save(weights, {"format": FORMAT, "version": VERSION, "model_config": meta["model_config"], **info,
+                           **(card or {})}, out, "model.pt", "config.json")
     return out
 
 
