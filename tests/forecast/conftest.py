@@ -25,9 +25,11 @@ def straight_rows(ped: int, start: tuple[float, float], step: tuple[float, float
 
 @pytest.fixture
 def eth_ucy() -> Path:
-    """The shared ETH/UCY folder (the tests check real numbers from it)."""
+    """The shared ETH/UCY folder (the tests check real numbers from it); skipped where the checkout
+    has no ``../shared`` (as the motion-library tests), so a clone elsewhere still runs the rest."""
     root = default_data_dir()
-    assert (root / "all_data" / "biwi_eth.txt").is_file(), f"shared data missing at {root}"
+    if not (root / "all_data" / "biwi_eth.txt").is_file():
+        pytest.skip(f"../shared/data/trajectories/eth_ucy not available at {root}")
     return root
 
 
