@@ -259,14 +259,7 @@ class DiffusionCrowd:
 
     def velocities(self, env: NavEnv) -> np.ndarray:
         """World velocities (H, 2) that take kinematic pedestrians to their plan one step ahead."""
-        self.maybe_plan(env)
-        R, dt = env.n_robots, env.config.dt
-        t_rel = env.sim_time - self.plan_time + dt
-        goal = np.stack([self._plan_at(j, np.array([t_rel]))[0] for j in range(env.n_humans)]) if env.n_humans else np.zeros((0, 2))
-        v = (goal - env.pos[R:]) / dt
-        speed = np.linalg.norm(v, axis=1, keepdims=True)
-        vmax = env.config.human_max_speed
-        return np.where(speed > vmax, v / np.maximum(speed, 1e-9) * vmax, v)
+        return self.preferred_velocities(env, lookahead=env.config.dt)
 
     def plan_positions(self, env: NavEnv, dt: float, steps: int) -> np.ndarray:
         """(H, steps + 1, 2) positions every ``dt`` from now along fresh plans (AMP target paths)."""
