@@ -225,20 +225,21 @@ class DiffusionCrowd:
         steps = (np.arange(1, H + 1) * MODEL_DT)[None, :, None]
         fut = env.pos[agents][:, None, :] + steps * env.vel[agents][:, None, :]
         if self.plan is not None and self.plan.shape[0] == env.n_humans:
-            t_rel = env.sim_time - self.plan_time
-            for m, a in enumerate(agents):
-                if a >= R:
-                    fut[m] = self._plan_at(a - R, t_rel + steps[0, :, 0])
+            people_now = agents >= R
+            fut[people_now] = self._plans_at(env.sim_time - self.plan_time + steps[0, :, 0])[agents[people_now] - R]
         B = people.size
         others = np.repeat(fut[None], B, axis=0)
         mask = agents[None, :] != people[:, None]
         return others, mask
 
-    def _plan_at(self, j: int, t: np.ndarray) -> np.ndarray:
-        """Positions of pedestrian j's plan at times t (s after the plan was made), held at its end."""
-        grid_t = np.arange(self.plan.shape[1]) * MODEL_DT
-        tc = np.clip(t, 0.0, grid_t[-1])
-        return np.stack([np.interp(tc, grid_t, self.plan[j, :, 0]), np.interp(tc, grid_t, self.plan[j, :, 1])], -1)
+    def _plans_at(self, t: float | np.ndarray) -> np.ndarray:
+        """Positions (H, len(t), 2) of every pedestrian's plan at times t (s after it was made),
+        linear between plan points and held at the end (all plans share one time grid)."""
+        K = self.plan.shape[1]
+        f = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), 0.0, (K - 1) * MODEL_DT) / MODEL_DT
+        k0 = np.minimum(np.floor(f).astype(int), K - 2)
+        w = (f - k0)[None, :, None]
+        return self.plan[:, k0] * (1.0 - w) + self.plan[:, k0 + 1] * w
 
     # ------------------------------------------------------------------ outputs
     def maybe_plan(self, env: NavEnv, force: bool = False) -> None:
@@ -251,7 +252,7 @@ class DiffusionCrowd:
         self.maybe_plan(env)
         R = env.n_robots
         t_rel = env.sim_time - self.plan_time + lookahead
-        ahead = np.stack([self._plan_at(j, np.array([t_rel]))[0] for j in range(env.n_humans)]) if env.n_humans else np.zeros((0, 2))
+        ahead = self._plans_at(t_rel)[:, 0]
         v = (ahead - env.pos[R:]) / lookahead
         speed = np.linalg.norm(v, axis=1, keepdims=True)
         vmax = env.config.human_max_speed
@@ -265,4 +266,4 @@ class DiffusionCrowd:
         """(H, steps + 1, 2) positions every ``dt`` from now along fresh plans (AMP target paths)."""
         self.plan_now(env)
         t = np.arange(steps + 1) * dt
-        return np.stack([self._plan_at(j, t) for j in range(env.n_humans)]) if env.n_humans else np.zeros((0, steps + 1, 2))
+        return self._plans_at(t)

@@ -15,7 +15,6 @@ the same command again resumes from it. :func:`export` writes the EMA weights as
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import signal
@@ -28,6 +27,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from navzoo.agents.amp.checkpoint import sha256_file
 from navzoo.agents.diffusion.model import DiffusionConfig, TrajectoryDiffusion
 
 __all__ = ["TrainConfig", "export", "load_model", "train", "windows_to_batch"]
@@ -131,21 +131,13 @@ def _check_windows(windows: dict[str, np.ndarray], name: str) -> int:
     return n
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def _atomic_save(obj: dict[str, Any], meta: dict[str, Any], folder: Path, weights_name: str, meta_name: str) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     tmp = folder / f".{weights_name}.tmp"
     torch.save(obj, tmp)
     with open(tmp, "rb") as f:
         os.fsync(f.fileno())
-    meta = dict(meta, sha256=_sha256(tmp))
+    meta = dict(meta, sha256=sha256_file(tmp))
     tmp_meta = folder / f".{meta_name}.tmp"
     tmp_meta.write_text(json.dumps(meta, indent=1))
     os.replace(tmp, folder / weights_name)
@@ -164,7 +156,7 @@ def _load_checked(folder: Path, weights_name: str, meta_name: str) -> tuple[dict
         raise ValueError(f"{meta_path}: format {meta.get('format')!r} is not {FORMAT!r}")
     if meta.get("version") != VERSION:
         raise ValueError(f"{meta_path}: version {meta.get('version')!r}, this navzoo reads version {VERSION}")
-    if meta.get("sha256") != _sha256(w_path):
+    if meta.get("sha256") != sha256_file(w_path):
         raise ValueError(f"{w_path} does not match the sha256 in {meta_path} (corrupted or replaced)")
     return torch.load(w_path, map_location="cpu", weights_only=True), meta
 
@@ -177,7 +169,7 @@ def _validation_loss(model: TrajectoryDiffusion, windows: dict[str, np.ndarray],
     total, count = 0.0, 0
     for i in range(0, len(rows), 512):
         b = windows_to_batch(windows, rows[i:i + 512], device)
-        loss, _ = model.loss({k: v.cpu() for k, v in b.items()} if device == "cpu" else b, generator=g if device == "cpu" else None)
+        loss, _ = model.loss(b, generator=g if device == "cpu" else None)  # fixed noise where it can be
         total += float(loss) * len(rows[i:i + 512])
         count += len(rows[i:i + 512])
     model.train()
