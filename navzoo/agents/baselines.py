@@ -61,7 +61,7 @@ def _to_actions(env: NavEnv, idx: np.ndarray, desired: np.ndarray, wall_filter: 
 
 def _others(env: NavEnv, idx: np.ndarray) -> np.ndarray:
     """Live agents (people and robots) other than the controlled robots ``idx``."""
-    mask = env.alive.copy()
+    mask = env.alive & env.present  # absent (replay: parked) people are not there
     mask[idx] = False
     return np.flatnonzero(mask)
 

@@ -28,20 +28,22 @@ class CrowdPolicy:
             semantics and CrowdNav's settings: maximum speed = preferred speed, discs 0.01 m larger
             inside ORCA, slowing down within 1 m of the goal, as CrowdNav's pedestrians) or
             ``"diffusion"`` (the env's :class:`navzoo.agents.diffusion.crowd.DiffusionCrowd` plans as
-            preferred velocities, social force for the bodies in between).
+            preferred velocities, social force for the bodies in between) or ``"replay"`` (recorded
+            ETH/UCY tracks, :mod:`navzoo.agents.replay`: the env moves the people itself and ignores
+            their actions; this policy returns their recorded velocities as actions, for completeness).
         see_robots: whether people react to robots (False = CrowdNav's invisible robot).
         sfm_params / orca_params: model parameters.
     """
 
     def __init__(
         self,
-        model: Literal["sfm", "orca", "orca_rvo2", "diffusion"] = "sfm",
+        model: Literal["sfm", "orca", "orca_rvo2", "diffusion", "replay"] = "sfm",
         see_robots: bool = True,
         sfm_params: SocialForceParams | None = None,
         orca_params: OrcaParams | None = None,
     ) -> None:
-        if model not in ("sfm", "orca", "orca_rvo2", "diffusion"):
-            raise ValueError(f"crowd model must be 'sfm', 'orca', 'orca_rvo2' or 'diffusion', got {model!r}")
+        if model not in ("sfm", "orca", "orca_rvo2", "diffusion", "replay"):
+            raise ValueError(f"crowd model must be 'sfm', 'orca', 'orca_rvo2', 'diffusion' or 'replay', got {model!r}")
         self.model = model
         self.see_robots = see_robots
         self.sfm_params = sfm_params or SocialForceParams()
@@ -59,6 +61,10 @@ class CrowdPolicy:
         if h.size == 0:
             return np.zeros((0, 2))
         pos, vel, rad = env.pos[h], env.vel[h], env.radius[h]
+        if self.model == "replay":  # the env plays the recording; actions are ignored
+            if getattr(env, "replay", None) is None:
+                raise ValueError("CrowdPolicy('replay') needs an env made with crowd_model='replay'")
+            return vel.copy()
         if self.model == "diffusion":  # the sampled plans set where and how fast; social force avoids
             if env.diffusion is None:
                 raise ValueError("CrowdPolicy('diffusion') needs an env made with crowd_model='diffusion'")

@@ -280,7 +280,7 @@ class DWAPolicy:
         c_obs = np.exp(-np.clip(clear.min(axis=2), 0.0, None) / prm.obstacle_scale)
 
         # People and other robots at constant velocity.
-        others = np.flatnonzero(env.alive)
+        others = np.flatnonzero(env.alive & env.present)  # absent (replay: parked) people left out
         c_people = np.zeros(cand.shape[:2])
         c_coll = np.zeros(cand.shape[:2])
         if others.size:

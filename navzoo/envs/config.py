@@ -13,7 +13,9 @@ from typing import Any, Literal
 
 from navzoo.agents.robot import RobotSpec
 
-CrowdModel = Literal["sfm", "orca", "orca_rvo2", "diffusion"]
+CrowdModel = Literal["sfm", "orca", "orca_rvo2", "diffusion", "replay"]
+CROWD_MODELS = ("sfm", "orca", "orca_rvo2", "diffusion", "replay")
+_DEFAULT_SCENE = "circle_crossing"
 HumanModel = Literal["kinematic", "amp"]
 AMP_CONTROL_HZ = 30  # control rate of the AMP pedestrian controller (its training rate)
 
@@ -38,11 +40,20 @@ class NavConfig:
             force), ``"orca"`` (navzoo's ORCA), ``"orca_rvo2"`` (ORCA with RVO2's exact
             semantics, as CrowdNav's pedestrians) or ``"diffusion"`` (paths sampled every 2 s from the
             trajectory diffusion model trained on ETH/UCY, guided toward A* waypoints and away from
-            people and walls; :mod:`navzoo.agents.diffusion.crowd`, docs/crowd.md).
+            people and walls; :mod:`navzoo.agents.diffusion.crowd`, docs/crowd.md) or ``"replay"``
+            (real ETH/UCY tracks played back unchanged in the recording's open scene: people do not
+            react to robots, pedestrian actions are ignored; kinematic bodies only;
+            :mod:`navzoo.agents.replay`, docs/crowd.md "Replay crowd").
         diffusion_model: ``crowd_model="diffusion"``: directory of an exported model (None = the
             shipped ``policies/trajectory_diffusion``).
         diffusion_samples: ``crowd_model="diffusion"``: futures sampled per person and plan (the one
             of lowest guidance cost is walked).
+        replay_scene: ``crowd_model="replay"``: the recording to play (``"eth"``, ``"univ"``,
+            ``"zara1"``, ``"zara3"``, ``"uni_examples"``; ``"hotel"``, ``"zara2"`` where their files
+            exist). ``None`` = taken from ``scene="replay_<recording>"``. With the default ``scene``,
+            ``scene`` becomes ``"replay_<recording>"``; any other scene is an error.
+        replay_start: ``crowd_model="replay"``: recording time (s) shown at env time 0; the episode
+            plays ``[replay_start, replay_start + time_limit]``.
         humans_see_robots: whether pedestrians react to robots (off = CrowdNav's invisible robot).
         human_yielding: turn-taking in bottlenecks: a pedestrian stuck face to face with another
             steps back and waits (:mod:`navzoo.agents.yielding`), so opposite flows through a door
@@ -88,6 +99,8 @@ class NavConfig:
     crowd_model: CrowdModel = "sfm"
     diffusion_model: str | None = None
     diffusion_samples: int = 4
+    replay_scene: str | None = None
+    replay_start: float = 0.0
     humans_see_robots: bool = True
     human_yielding: bool = True
     human_radius: float = 0.3
@@ -136,8 +149,9 @@ class NavConfig:
                                  f"(the AMP controller's rate), got {self.dt!r}; use dt=1/{AMP_CONTROL_HZ}")
         if not _is_pos(self.amp_replan_seconds):
             raise bad("amp_replan_seconds", "a finite number > 0")
-        if self.crowd_model not in ("sfm", "orca", "orca_rvo2", "diffusion"):
-            raise bad("crowd_model", "'sfm', 'orca', 'orca_rvo2' or 'diffusion'")
+        if self.crowd_model not in CROWD_MODELS:
+            raise bad("crowd_model", "'sfm', 'orca', 'orca_rvo2', 'diffusion' or 'replay'")
+        self._validate_replay()
         if self.diffusion_model is not None and (not isinstance(self.diffusion_model, str) or not self.diffusion_model):
             raise bad("diffusion_model", "None or a path to an exported trajectory diffusion model")
         if not _is_int(self.diffusion_samples) or self.diffusion_samples < 1:
@@ -174,6 +188,45 @@ class NavConfig:
             raise bad("max_episode_steps_override", "None or an integer >= 1")
         if not isinstance(self.flat_obs, bool):
             raise bad("flat_obs", "a bool")
+
+    def _validate_replay(self) -> None:
+        from navzoo.agents.replay import SCENE_PREFIX, canonical_recording, load_recording
+
+        if not (_is_pos(self.replay_start) or self.replay_start == 0) or isinstance(self.replay_start, bool):
+            raise ValueError(f"NavConfig.replay_start must be a finite number >= 0 (seconds into the recording), "
+                             f"got {self.replay_start!r}")
+        object.__setattr__(self, "replay_start", float(self.replay_start))
+        if self.crowd_model != "replay":
+            if self.replay_scene is not None:
+                raise ValueError(f"NavConfig.replay_scene={self.replay_scene!r} is only used with crowd_model='replay', "
+                                 f"got crowd_model={self.crowd_model!r}; set replay_scene=None (the open scene "
+                                 f"'{SCENE_PREFIX}<recording>' works with every crowd model)")
+            return
+        if self.human_model != "kinematic":
+            raise ValueError("crowd_model='replay' plays recorded tracks on kinematic bodies only; human_model="
+                             f"{self.human_model!r} is not supported (physics humanoids cannot follow a recorded "
+                             "track exactly); use human_model='kinematic'")
+        from_scene = self.scene[len(SCENE_PREFIX):] if self.scene.startswith(SCENE_PREFIX) else None
+        if self.replay_scene is None and from_scene is None:
+            raise ValueError("crowd_model='replay' needs a recording: replay_scene='eth' (or 'univ', 'zara1', ...) "
+                             "or scene='replay_<recording>'")
+        if self.replay_scene is not None and not isinstance(self.replay_scene, str):
+            raise ValueError(f"NavConfig.replay_scene must be None or a recording name, got {self.replay_scene!r}")
+        name = canonical_recording(self.replay_scene if self.replay_scene is not None else from_scene)
+        if from_scene is not None and canonical_recording(from_scene) != name:
+            raise ValueError(f"NavConfig.scene={self.scene!r} does not match replay_scene={self.replay_scene!r}; "
+                             f"use scene='{SCENE_PREFIX}{name}' (or leave scene at its default)")
+        if from_scene is None and self.scene != _DEFAULT_SCENE:
+            raise ValueError(f"crowd_model='replay' plays recording {name!r} in its own open scene "
+                             f"'{SCENE_PREFIX}{name}', got scene={self.scene!r}; use scene='{SCENE_PREFIX}{name}' "
+                             "(or leave scene at its default)")
+        object.__setattr__(self, "replay_scene", name)
+        object.__setattr__(self, "scene", f"{SCENE_PREFIX}{name}")
+        rec = load_recording(name)
+        if self.replay_start >= rec.duration:
+            raise ValueError(f"NavConfig.replay_start={self.replay_start:g} s is beyond the end of recording "
+                             f"{name!r} ({rec.stem}, {rec.duration:.1f} s long); use 0 <= replay_start < "
+                             f"{rec.duration:.1f}")
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> NavConfig:

@@ -50,6 +50,12 @@ class NavEnv(ParallelEnv):
     reach their goal or collide; pedestrians stay until the episode ends. The episode ends for
     everyone when no robot is left or at the time limit.
 
+    With ``crowd_model="replay"`` (:mod:`navzoo.agents.replay`) the pedestrians replay recorded
+    ETH/UCY tracks: they stay in ``agents`` (a stable list) but their actions are ignored and their
+    rewards are 0; a slot whose person has not appeared yet or has left is absent
+    (``env.human_active[j]`` False, ``info["active"]``): parked far outside the scene, left out of
+    observations, collisions, clearances and rendering.
+
     ## Action space
     ``Box(-1, 1, (2,), float32)`` for every agent; finite values outside [-1, 1] are clipped and
     counted in ``info[agent]["action_clipped"]``.
@@ -126,13 +132,25 @@ class NavEnv(ParallelEnv):
         self.render_view = render_view
         self.scene: Scene = _resolve_scene(cfg.scene)
         self.n_robots = cfg.n_robots
-        self.n_humans = cfg.n_humans if cfg.n_humans is not None else int(self.scene.default_humans)
+        self.time_limit = cfg.time_limit if cfg.time_limit is not None else float(self.scene.time_limit)
+        self.max_steps = cfg.max_episode_steps_override or max(1, int(round(self.time_limit / cfg.dt)))
+        # crowd_model="replay": recorded ETH/UCY people in fixed slots (navzoo.agents.replay); by
+        # default as many slots as people present at once in the played window.
+        self.replay = None
+        if cfg.crowd_model == "replay":
+            from navzoo.agents.replay import ReplayCrowd
+
+            self.replay = ReplayCrowd(cfg.replay_scene, cfg.replay_start, cfg.dt, self.max_steps, cfg.n_humans)
+            self.n_humans = self.replay.n_slots
+            if self.n_robots == 0 and self.n_humans == 0:
+                raise ValueError(f"no agent at all: n_robots=0 and nobody walks in recording {cfg.replay_scene!r} "
+                                 f"between {cfg.replay_start:g} s and {cfg.replay_start + self.time_limit:g} s")
+        else:
+            self.n_humans = cfg.n_humans if cfg.n_humans is not None else int(self.scene.default_humans)
         self.n_total = self.n_robots + self.n_humans
         self.possible_agents = [f"robot_{i}" for i in range(self.n_robots)] + [f"human_{j}" for j in range(self.n_humans)]
         self._index = {a: i for i, a in enumerate(self.possible_agents)}
         self.agents: list[str] = []
-        self.time_limit = cfg.time_limit if cfg.time_limit is not None else float(self.scene.time_limit)
-        self.max_steps = cfg.max_episode_steps_override or max(1, int(round(self.time_limit / cfg.dt)))
         self.goal_tolerance = cfg.goal_tolerance if cfg.goal_tolerance is not None else cfg.robot.radius
         self.reward_params = RewardParams()
 
@@ -199,6 +217,7 @@ class NavEnv(ParallelEnv):
             self._body_kind[b] = "robot"
         for b in human_ids:
             self._body_kind[b] = "human"
+        self._human_index = {b: j for j, b in enumerate(human_ids)}
         self._saved_state = p.saveState(physicsClientId=self.client)
 
         self._seeded = False
@@ -254,19 +273,41 @@ class NavEnv(ParallelEnv):
             self.robots.restore(i)
 
         R, H, N = self.n_robots, self.n_humans, self.n_total
-        r_start, r_goal = self._sample_or_take(options, "robot", R, None)
-        h_start, h_goal = self._sample_or_take(options, "human", H, (r_start, self.radius[:R], r_goal))
+        rp = self.replay
+        if rp is not None:
+            given = sorted({"human_starts", "human_goals"} & set(options))
+            if given:
+                raise ValueError(f"reset option(s) {given} cannot be used with crowd_model='replay': the people "
+                                 "follow the recording")
+            # Robots start clear of the people present at t=0 (0.5 m beyond touching).
+            act0 = rp.active[0]
+            h_start, h_goal = rp.pos[0].copy(), rp.goal[0].copy()
+            r_start, r_goal = self._sample_or_take(
+                options, "robot", R, (h_start[act0], np.full(int(act0.sum()), cfg.human_radius + 0.5), h_goal[act0]))
+        else:
+            r_start, r_goal = self._sample_or_take(options, "robot", R, None)
+            h_start, h_goal = self._sample_or_take(options, "human", H, (r_start, self.radius[:R], r_goal))
         self.pos = np.concatenate([r_start, h_start]).reshape(N, 2).astype(np.float64)
         self.goal = np.concatenate([r_goal, h_goal]).reshape(N, 2).astype(np.float64)
         self.vel = np.zeros((N, 2))
         self.omega = np.zeros(N)
         self.cmd = np.zeros((R, 2))
-        self.paths: list[np.ndarray] = [self._plan(i, self.pos[i], self.goal[i]) for i in range(N)]
+        # Replayed people walk their recorded track: their "path" is the track's last point.
+        self.paths: list[np.ndarray] = [
+            self._plan(i, self.pos[i], self.goal[i]) if (rp is None or i < R) else self.goal[i][None].copy()
+            for i in range(N)
+        ]
         self.wp_index = np.zeros(N, dtype=int)
         self._advance_waypoints()
         yaws = np.array([_heading_along(path, start) for path, start in zip(self.paths, self.pos, strict=True)])
         if "robot_yaws" in options:
             yaws[:R] = _as_array(options["robot_yaws"], (R,), "robot_yaws")
+        self.human_active = np.ones(H, dtype=bool)  # False = absent (replay: not yet appeared / left)
+        self._human_continuing = np.ones(H, dtype=bool)  # present at the previous step too, on the same track
+        if rp is not None:
+            yaws[R:] = rp.yaw[0]
+            self.vel[R:] = rp.vel[0]
+            self.human_active = rp.active[0].copy()
         self.yaw = yaws
         lo, hi = cfg.human_speed
         self.v_pref = np.concatenate([np.full(R, cfg.robot.max_speed), self.rng_crowd.uniform(lo, hi, H)])
@@ -279,7 +320,7 @@ class NavEnv(ParallelEnv):
         self.events: dict[str, str] = {}
         self.goals_reached = np.zeros(N, dtype=int)
         self.arrived = np.zeros(N, dtype=bool)  # pedestrians done for good (human_at_goal="stop")
-        self.turn_taking = TurnTaking(H) if cfg.human_yielding else None
+        self.turn_taking = TurnTaking(H) if cfg.human_yielding and rp is None else None
 
         self.robots.reset(self.pos[:R], self.yaw[:R])
         if self.diffusion is not None:
@@ -295,10 +336,14 @@ class NavEnv(ParallelEnv):
         T = cfg.history
         self.hist_pos = np.repeat(self.pos[None], T, axis=0)
         self.hist_vel = np.zeros((T, N, 2))
+        self.hist_vel[-1] = self.vel
         self.hist_yaw = np.repeat(self.yaw[None], T, axis=0)
         self.hist_valid = np.zeros(T, dtype=bool)
         self.hist_valid[-1] = True
+        self.hist_present = np.zeros((T, N), dtype=bool)  # per agent and step: in the world (not parked)
+        self.hist_present[-1] = self.present
         self.trail: list[np.ndarray] = [self.pos.copy()]  # every step's positions, for rendering
+        self.trail_present: list[np.ndarray] = [self.present.copy()]  # False also where a slot changed person
 
         self.agents = list(self.possible_agents)
         self._needs_reset = False
@@ -367,6 +412,26 @@ class NavEnv(ParallelEnv):
                     sph1, rev1 = self.amp.bodies.targets
                     sph1[~live_h], rev1[~live_h] = sph0[~live_h], rev0[~live_h]
                     self.amp.bodies.apply_targets(sph1, rev1)
+        elif self.replay is not None and hum.size:
+            # Replayed people (crowd_model="replay") follow the recording; their actions are ignored.
+            rp = self.replay
+            k0, k1 = rp.step_index(self.steps), rp.step_index(self.steps + 1)
+            cont = rp.active[k1] & (rp.track[k1] == rp.track[k0])
+            new_yaw = rp.yaw[k1]
+            self.omega[hum] = np.where(cont, wrap_angle(new_yaw - self.yaw[hum]) / dt, 0.0)
+            self.pos[hum] = rp.pos[k1]
+            self.vel[hum] = rp.vel[k1]
+            self.yaw[hum] = new_yaw
+            for j in np.flatnonzero(rp.track[k1] != rp.track[k0]):  # a slot changed person (or was parked)
+                self.goal[R + j] = rp.goal[k1, j]
+                self.paths[R + j] = rp.goal[k1, j][None].copy()
+                self.wp_index[R + j] = 0
+            self.human_active = rp.active[k1].copy()
+            self._human_continuing = cont
+            speed = np.linalg.norm(self.vel[hum], axis=1)
+            self.humans.advance(speed, dt)
+            self.humans.pose(self.pos[hum], self.yaw[hum], speed)
+            self._human_blocked = np.zeros(hum.size, dtype=bool)
         elif hum.size:
             a_h = act[hum]
             norm = np.linalg.norm(a_h, axis=1, keepdims=True)
@@ -454,6 +519,10 @@ class NavEnv(ParallelEnv):
             # Pedestrians' reward is the controller's task reward (r_tau + r_e + r_d); a learner adds
             # the style reward of its discriminator.
             rew[hum] = amp_terms["track"] + amp_terms["energy"] + amp_terms["direction"]
+        if self.replay is not None and hum.size:  # replayed people do not act: nothing to reward
+            rew[hum] = 0.0
+            for name in TERMS:
+                terms[name][hum] = 0.0
 
         # Bookkeeping: history, time.
         self.steps += 1
@@ -465,7 +534,11 @@ class NavEnv(ParallelEnv):
         self.hist_yaw = np.roll(self.hist_yaw, -1, axis=0)
         self.hist_valid = np.roll(self.hist_valid, -1)
         self.hist_pos[-1], self.hist_vel[-1], self.hist_yaw[-1], self.hist_valid[-1] = self.pos, self.vel, self.yaw, True
+        self.hist_present = np.roll(self.hist_present, -1, axis=0)
+        self.hist_present[:, R + np.flatnonzero(~self._human_continuing)] = False  # a new person: no past yet
+        self.hist_present[-1] = self.present
         self.trail.append(self.pos.copy())
+        self.trail_present.append(self.present & np.concatenate([np.ones(R, dtype=bool), self._human_continuing]))
 
         terminated = np.zeros(self.n_total, dtype=bool)
         terminated[:R] = robot_alive & (reached[:R] | collided[:R])
@@ -502,6 +575,8 @@ class NavEnv(ParallelEnv):
             else:
                 info["goal_reached"] = bool(reached[i])
                 info["map_blocked"] = bool(self._human_blocked[i - R]) if self.n_humans else False
+                if self.replay is not None:
+                    info["active"] = bool(self.human_active[i - R])
                 if self.amp is not None:
                     j = i - R
                     info["fallen"] = bool(self.human_fallen[j])
@@ -563,9 +638,11 @@ class NavEnv(ParallelEnv):
         rr = self.radius[idx]
         # People: the robot's motion relative to each person is a segment; test its distance to the
         # person's centre (CrowdNav's swept test, so fast robots cannot tunnel through people).
-        if self.n_humans:
-            h = np.arange(R, self.n_total)
-            p0 = prev_pos[idx][:, None, :] - prev_pos[h][None, :, :]
+        # Absent (parked) people are left out; a person who just appeared is tested where they are.
+        h = R + np.flatnonzero(self.human_active)
+        if h.size:
+            h_prev = np.where(self._human_continuing[h - R][:, None], prev_pos[h], self.pos[h])
+            p0 = prev_pos[idx][:, None, :] - h_prev[None, :, :]
             p1 = self.pos[idx][:, None, :] - self.pos[h][None, :, :]
             dmin = _segment_origin_distance(p0, p1)
             hit = dmin < (rr[:, None] + self.radius[h][None, :]) - COLLISION_TOLERANCE
@@ -596,6 +673,8 @@ class NavEnv(ParallelEnv):
                 kind = self._body_kind.get(body)
                 if kind == "human" and not self.config.human_body_contacts:
                     continue
+                if kind == "human" and self._human_index.get(body) is not None and not self.human_active[self._human_index[body]]:
+                    continue
                 if kind is not None:
                     out[int(i)] = kind
                     break
@@ -620,7 +699,7 @@ class NavEnv(ParallelEnv):
 
     def _clearance(self) -> np.ndarray:
         """d_obs: smallest edge-to-edge distance of each agent to any other live agent or obstacle."""
-        vis = self.alive.copy()
+        vis = self.alive & self.present
         d = np.linalg.norm(self.pos[:, None, :] - self.pos[None, :, :], axis=2) - self.radius[:, None] - self.radius[None, :]
         d[:, ~vis] = np.inf
         np.fill_diagonal(d, np.inf)
@@ -651,6 +730,8 @@ class NavEnv(ParallelEnv):
         """Give pedestrians that reached their goal a new goal and path; returns who reached."""
         R = self.n_robots
         reached = np.zeros(self.n_humans, dtype=bool)
+        if self.replay is not None:  # replayed people leave the scene where their track ends
+            return reached
         stop = self.config.human_at_goal == "stop"
         for j in range(self.n_humans):
             i = R + j
@@ -687,8 +768,8 @@ class NavEnv(ParallelEnv):
         goal = obs_terms.goal_features(self.pos[idx], self.yaw[idx], self.goal[idx])
         vel = obs_terms.velocity_features(self.vel[idx], self.yaw[idx], self.omega[idx])
         feats, mask = obs_terms.neighbor_features(
-            self.hist_pos, self.hist_vel, self.hist_yaw, self.hist_valid, self.radius, self.alive, idx,
-            cfg.k_neighbors, cfg.sensor_range,
+            self.hist_pos, self.hist_vel, self.hist_yaw, self.hist_valid, self.radius, self.alive & self.present, idx,
+            cfg.k_neighbors, cfg.sensor_range, hist_present=self.hist_present,
         )
         maps = self.grid.crop_many(self.pos[idx], self.yaw[idx], cfg.map_size, cfg.map_cells)
         for n, a in enumerate(agents):
@@ -707,6 +788,11 @@ class NavEnv(ParallelEnv):
         return {"action_clipped": int(self.action_clips[i]), "time": float(self.sim_time)}
 
     # ------------------------------------------------------------------ state for controllers
+    @property
+    def present(self) -> np.ndarray:
+        """(N,) bool: agents in the world (robots always; pedestrians unless absent, see ``human_active``)."""
+        return np.concatenate([np.ones(self.n_robots, dtype=bool), self.human_active])
+
     def next_waypoints(self) -> np.ndarray:
         """(N, 2) current A* waypoint of every agent (its goal once the path is used up)."""
         return np.stack([self.paths[i][min(self.wp_index[i], len(self.paths[i]) - 1)] for i in range(self.n_total)])
@@ -716,7 +802,7 @@ class NavEnv(ParallelEnv):
         return {
             "pos": self.pos.copy(), "vel": self.vel.copy(), "yaw": self.yaw.copy(), "omega": self.omega.copy(),
             "goal": self.goal.copy(), "radius": self.radius.copy(), "alive": self.alive.copy(),
-            "time": np.array(self.sim_time),
+            "present": self.present, "time": np.array(self.sim_time),
         }
 
     # ------------------------------------------------------------------ render / close

@@ -51,6 +51,7 @@ def neighbor_features(
     observers: np.ndarray,
     k: int,
     sensor_range: float,
+    hist_present: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The K nearest other agents over the last T steps, in each observer's current frame.
 
@@ -64,6 +65,8 @@ def neighbor_features(
         observers: (A,) indices of the observing agents.
         k: number of neighbour slots.
         sensor_range: agents farther than this (centre to centre, now) are not observed.
+        hist_present: optional (T, N) bool: whether each agent was in the world at each history step
+            (replayed people appear and leave mid-episode); entries where it was not are masked.
 
     Returns:
         ``(features (A, K, T, 7), mask (A, K, T))``: neighbours sorted nearest first; empty slots
@@ -102,7 +105,10 @@ def neighbor_features(
         ],
         axis=-1,
     )
-    m = (ok[:, :, None] & hist_valid[None, None, :]).astype(np.float32)
+    m = ok[:, :, None] & hist_valid[None, None, :]
+    if hist_present is not None:
+        m = m & np.transpose(hist_present[:, idx], (1, 2, 0))
+    m = m.astype(np.float32)
     feats[:, :kk] = f * m[..., None]
     mask[:, :kk] = m
     return feats, mask

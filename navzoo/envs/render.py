@@ -49,9 +49,16 @@ def draw_topdown(env: NavEnv, max_px: int = 640) -> np.ndarray:
             cv2.polylines(img, [pts], False, PATH_BGR, 1, cv2.LINE_AA, shift=2)
     # Trails: each robot's whole episode, the last 3 s of each person.
     history = np.asarray(env.trail)
+    present = np.asarray(getattr(env, "trail_present", np.ones(history.shape[:2], dtype=bool)))
     recent = max(1, int(round(3.0 / env.config.dt)))
     for i in range(env.n_total):
         pts = history[:, i] if i < R else history[-recent:, i]
+        if i >= R:  # only the stretch since an absent (replay: parked) person last appeared
+            here = present[-recent:, i]
+            if not here[-1]:
+                continue
+            gone = np.flatnonzero(~here)
+            pts = pts[gone[-1] + 1:] if gone.size else pts
         trail = px(pts)
         color = ROBOT_BGR if i < R else HUMAN_BGR
         if len(trail) > 1:
@@ -62,8 +69,9 @@ def draw_topdown(env: NavEnv, max_px: int = 640) -> np.ndarray:
         r = int(max(3, env.goal_tolerance * scale) * ss)
         cv2.circle(img, tuple(g), r, GOAL_BGR, 2, cv2.LINE_AA, shift=2)
         cv2.drawMarker(img, tuple((g // ss).tolist()), GOAL_BGR, cv2.MARKER_CROSS, 8, 2)
+    shown = env.alive & env.present if hasattr(env, "human_active") else env.alive
     for i in range(env.n_total):
-        if not env.alive[i]:
+        if not shown[i]:
             continue
         color = ROBOT_BGR if i < R else HUMAN_BGR
         c = px(env.pos[i])
@@ -71,7 +79,7 @@ def draw_topdown(env: NavEnv, max_px: int = 640) -> np.ndarray:
         cv2.circle(img, tuple(c), r, color, -1 if i < R else 2, cv2.LINE_AA, shift=2)
         tip = px(env.pos[i] + env.radius[i] * 1.6 * np.array([np.cos(env.yaw[i]), np.sin(env.yaw[i])]))
         cv2.line(img, tuple(c), tuple(tip), (0, 0, 0) if i < R else color, 2, cv2.LINE_AA, shift=2)
-    label = f"{env.scene.name}  t={env.sim_time:5.1f}s  robots={int(env.alive[:R].sum())}/{R}  people={env.n_humans}"
+    label = f"{env.scene.name}  t={env.sim_time:5.1f}s  robots={int(env.alive[:R].sum())}/{R}  people={int(shown[R:].sum())}"
     cv2.putText(img, label, (6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 

@@ -40,9 +40,13 @@ def _load(name: str) -> Scene:
         scene = from_name(name)
         if scene is not None:
             return scene
+        if name.startswith("replay_"):  # the open scene of an ETH/UCY recording (navzoo.agents.replay)
+            from navzoo.agents.replay import scene_from_name
+
+            return scene_from_name(name)
         raise ValueError(
             f"unknown scene {name!r}; valid scenes: {', '.join(sorted(files))} "
-            "(and procedural_rooms_<seed>, procedural_aisles_<seed>)"
+            "(and procedural_rooms_<seed>, procedural_aisles_<seed>, replay_<recording>)"
         )
     data = yaml.safe_load(files[name].read_text(encoding="utf-8"))
     if not isinstance(data, dict):
@@ -58,8 +62,10 @@ def get_scene(name: str) -> Scene:
     """The packaged scene ``name`` (validated, including reachability; cached, immutable).
 
     Names ``procedural_rooms_<seed>`` and ``procedural_aisles_<seed>`` (``<seed>`` a non-negative integer)
-    give the scenes of :mod:`navzoo.world.procedural` for that seed with default parameters; they are not
-    listed by :func:`list_scenes`.
+    give the scenes of :mod:`navzoo.world.procedural` for that seed with default parameters; names
+    ``replay_<recording>`` (``replay_eth``, ``replay_zara1``, ...) the open scene of that ETH/UCY recording
+    (:func:`navzoo.agents.replay.replay_scene`, needs the trajectory data). Neither is listed by
+    :func:`list_scenes`.
 
     Raises:
         ValueError: for an unknown name, listing the valid ones.
