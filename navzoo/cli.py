@@ -70,6 +70,10 @@ def build_parser() -> argparse.ArgumentParser:
     from navzoo.forecast.evaluate import add_arguments as add_forecast_arguments
 
     add_forecast_arguments(esub.add_parser("forecast", help="minADE/minFDE of trajectory forecasters on ETH/UCY files"))
+    from navzoo.benchmark.crowd_eval import add_arguments as add_crowd_eval_arguments
+
+    add_crowd_eval_arguments(esub.add_parser(
+        "crowd", help="closed-loop crowds: realism vs ETH/UCY, pedestrian reliability table, replan and step cost"))
 
     bench = sub.add_parser(
         "benchmark", help="run robot policies over scenes x crowds x densities x episodes (parallel, resumable)",
@@ -128,6 +132,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                 from navzoo.forecast.evaluate import run_cli as run_forecast_cli
 
                 return run_forecast_cli(args)
+            if args.eval_command == "crowd":
+                from navzoo.benchmark.crowd_eval import run_cli as run_crowd_cli
+
+                return run_crowd_cli(args)
             parser.parse_args(["eval", "--help"])
             return 2
     except (ValueError, TypeError, FileNotFoundError, OSError) as exc:

@@ -13,7 +13,9 @@ Four measurements of the shipped AMP controller (``policies/amp_pedestrian``), a
   map collision (the body touched a scene obstacle during the trip), agent collision (it touched
   another person or a robot). Trips still under way when the scene's time is up are not counted
   (``trips_running``). Path error: distance of the root from the current target point, averaged over
-  all steps of standing pedestrians;
+  all steps of standing pedestrians. :func:`following` also runs other target generators
+  (``crowd_model``, e.g. the diffusion crowd) and kinematic bodies (``human_model``), for the
+  reliability table of ``navzoo eval crowd`` (:mod:`navzoo.benchmark.crowd_eval`);
 * **realism** (:mod:`navzoo.benchmark.realism`) of the poses of the AMP pedestrians of the following
   run and of kinematic pedestrians (walk-cycle replay) run the same way, against the reference clips;
 * **throughput** with pedestrians only: agent steps/s (one agent step = one 30 Hz control step of one
@@ -49,11 +51,12 @@ def people_per_scene(n_scenes: int, lo: int = 3, hi: int = 15) -> list[int]:
     return [int(round(lo + (hi - lo) * k / (n_scenes - 1))) for k in range(n_scenes)]
 
 
-def _make(scene: str, n: int, human_model: str, seconds: float, seed: int, policy_dir: str | None):
+def _make(scene: str, n: int, human_model: str, seconds: float, seed: int, policy_dir: str | None,
+          crowd_model: str = "sfm"):
     from navzoo.envs.nav_env import NavEnv
     from navzoo.envs.wrappers import FrozenAgents
 
-    env = NavEnv(scene=scene, n_robots=0, n_humans=n, human_model=human_model, dt=DT, crowd_model="sfm",
+    env = NavEnv(scene=scene, n_robots=0, n_humans=n, human_model=human_model, dt=DT, crowd_model=crowd_model,
                  time_limit=seconds)
     if human_model == "amp":
         from navzoo.agents.amp.pedestrian_policy import AmpPedestrianPolicy
@@ -62,7 +65,7 @@ def _make(scene: str, n: int, human_model: str, seconds: float, seed: int, polic
     else:
         from navzoo.agents.crowd import CrowdPolicy
 
-        policy = CrowdPolicy("sfm")
+        policy = CrowdPolicy(crowd_model)
     wrapped = FrozenAgents(env, lambda a: a.startswith("human_"), policy)
     wrapped.reset(seed=seed)
     return wrapped, env
@@ -79,11 +82,59 @@ def body_keypoints(client: int, ids: list[int]) -> np.ndarray:
     return out
 
 
+def kinematic_contacts(env) -> tuple[np.ndarray, np.ndarray]:
+    """(H,) bools for kinematic pedestrians, which have no physics contacts: *map contact* when the
+    person's centre is closer than its radius to an obstacle edge or the scene bounds
+    (``env.segments``, exact point-segment distance); *agent contact* when its centre is closer than
+    the sum of the two radii (``env.radius``, 2 x 0.3 m for two people) to another person or a live robot."""
+    from navzoo.world.geometry import min_distance_to_segments
+
+    R, N = env.n_robots, env.n_total
+    h = np.arange(R, N)
+    if h.size == 0:
+        return np.zeros(0, dtype=bool), np.zeros(0, dtype=bool)
+    map_hit = min_distance_to_segments(env.pos[h], env.segments) < env.radius[h]
+    d = np.linalg.norm(env.pos[h][:, None, :] - env.pos[None, :, :], axis=2) - env.radius[h][:, None] - env.radius[None, :]
+    d[np.arange(h.size), h] = np.inf  # not oneself
+    d[:, ~env.alive] = np.inf  # removed robots
+    return map_hit, (d < 0.0).any(axis=1)
+
+
+def target_points(env) -> np.ndarray | None:
+    """(H, 2) the point each pedestrian should be at now, for the path error, or None where there is none.
+
+    AMP pedestrians: the current point of their target trajectory (``env.amp.target_now()``, for every
+    crowd model). Kinematic pedestrians of the ``"diffusion"`` crowd: the current point of their
+    diffusion plan (the plan made at ``plan_time``, linearly interpolated between its 0.4 s points at
+    ``sim_time - plan_time``; the social force between plans makes them deviate from it). Kinematic
+    pedestrians of rule-based crowds have no target trajectory besides their own motion: None (not
+    applicable).
+    """
+    if env.amp is not None:
+        return env.amp.target_now()
+    crowd = env.diffusion
+    if crowd is not None and crowd.plan is not None and crowd.plan.shape[0] == env.n_humans:
+        return crowd._plans_at(env.sim_time - crowd.plan_time)[:, 0]
+    return None
+
+
 def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, policy_dir: str | None = None,
-                 pose_every: int = 1, max_poses: int = 20_000) -> dict[str, Any]:
-    """One scene of :func:`following`: trip outcomes, contact flags, path error sums and poses."""
+                 pose_every: int = 1, max_poses: int = 20_000, crowd_model: str = "sfm",
+                 human_model: str = "amp") -> dict[str, Any]:
+    """One scene of :func:`following`: trip outcomes, contact flags, path error sums and poses.
+
+    ``crowd_model`` makes the target trajectories (AMP) or drives the bodies (kinematic). Kinematic
+    pedestrians never fall; their contacts are geometric (:func:`kinematic_contacts`) and their path
+    error is measured against :func:`target_points` (none for rule-based crowds: ``err_n`` stays 0,
+    ``path_error`` is False, and a trip that reaches its goal is a success).
+    """
     t0 = time.time()
-    wrapped, env = _make(scene, n, "amp", seconds, seed, policy_dir)
+    if human_model not in ("amp", "kinematic"):
+        raise ValueError(f"human_model must be 'amp' or 'kinematic', got {human_model!r}")
+    wrapped, env = _make(scene, n, human_model, seconds, seed, policy_dir, crowd_model)
+    amp = env.amp is not None
+    body_ids = env.amp.ids if amp else env.humans.ids
+    has_target = amp or env.diffusion is not None
     R = env.n_robots
     h = np.arange(R, env.n_total)
     start = np.zeros(n)
@@ -103,19 +154,25 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
         steps += 1
         t = env.sim_time
         live = ~done
-        m_flag |= env.human_map_contact & live
-        a_flag |= env.human_agent_contact & live
-        err = np.linalg.norm(env.pos[h] - env.amp.target_now(), axis=1)
-        standing = live & ~env.human_fallen
-        max_err = np.where(standing, np.maximum(max_err, err), max_err)
-        err_sum += float(err[standing].sum())
-        err_n += int(standing.sum())
+        if amp:
+            map_now, agent_now, fallen = env.human_map_contact, env.human_agent_contact, env.human_fallen
+        else:
+            (map_now, agent_now), fallen = kinematic_contacts(env), np.zeros(n, dtype=bool)
+        m_flag |= map_now & live
+        a_flag |= agent_now & live
+        standing = live & ~fallen
+        target = target_points(env) if has_target else None
+        if target is not None:
+            err = np.linalg.norm(env.pos[h] - target, axis=1)
+            max_err = np.where(standing, np.maximum(max_err, err), max_err)
+            err_sum += float(err[standing].sum())
+            err_n += int(standing.sum())
         if pose_every and steps % pose_every == 0 and n_poses < max_poses and standing.any():
-            kp = body_keypoints(env.client, [env.amp.ids[j] for j in np.flatnonzero(standing)])
+            kp = body_keypoints(env.client, [body_ids[j] for j in np.flatnonzero(standing)])
             poses.append(realism.normalize_poses(kp))
             n_poses += len(kp)
         outcome = np.full(n, "", dtype=object)
-        outcome[env.human_fallen & live] = "fall"
+        outcome[fallen & live] = "fall"
         at_goal = (env.goals_reached[h] > goals) & live & (outcome == "")
         outcome[at_goal] = np.where(max_err[at_goal] < 0.5, "success", "off_path")
         outcome[live & (outcome == "") & (t - start > limit)] = "timeout"
@@ -131,11 +188,13 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
                 done[j] = True
         goals = env.goals_reached[h].copy()
     wrapped.close()
-    print(f"following {scene} ({n} pedestrians, {seconds:.0f} s): {ended} in {time.time() - t0:.0f} s",
+    label = "" if (crowd_model, human_model) == ("sfm", "amp") else f" [{crowd_model}+{human_model}]"
+    print(f"following{label} {scene} ({n} pedestrians, {seconds:.0f} s): {ended} in {time.time() - t0:.0f} s",
           file=sys.stderr, flush=True)
     return {
         "scene": scene, "pedestrians": n, **ended, "map_trips": map_trips, "agent_trips": agent_trips,
-        "err_sum": err_sum, "err_n": err_n, "running": int((~done).sum()), "wall_s": round(time.time() - t0, 1),
+        "err_sum": err_sum, "err_n": err_n, "path_error": has_target, "running": int((~done).sum()),
+        "wall_s": round(time.time() - t0, 1),
         "poses": np.concatenate(poses) if poses else np.zeros((0, realism.POSE_DIM)),
     }
 
@@ -157,10 +216,28 @@ def _one_thread() -> None:
 
 
 def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: int = 0,
-              policy_dir: str | None = None, workers: int = 1) -> tuple[dict[str, Any], np.ndarray]:
+              policy_dir: str | None = None, workers: int = 1, crowd_model: str = "sfm",
+              human_model: str = "amp", pose_every: int = 1,
+              people: list[int] | None = None) -> tuple[dict[str, Any], np.ndarray]:
     """Trip outcomes of AMP pedestrians in ``scenes`` (3-15 people, one process per scene with
-    ``workers`` > 1); returns (metrics, poses (M, 45) of the standing pedestrians, for realism)."""
-    jobs = [(sc, n, seconds, seed, policy_dir) for sc, n in zip(scenes, people_per_scene(len(scenes)), strict=True)]
+    ``workers`` > 1); returns (metrics, poses (M, 45) of the standing pedestrians, for realism).
+
+    ``crowd_model`` / ``human_model`` select the target trajectories and the bodies (default: social
+    force targets for AMP pedestrians, the paper's SFM+AMP row); see :func:`follow_scene` for what
+    changes with kinematic bodies. ``path_error_m`` is None where no scene has a target trajectory
+    (kinematic pedestrians of a rule-based crowd). ``pose_every=0`` records no poses. ``people``: the
+    number of pedestrians of each scene (default :func:`people_per_scene`).
+    """
+    if crowd_model not in ("sfm", "orca", "orca_rvo2", "diffusion"):
+        raise ValueError(f"crowd_model must be 'sfm', 'orca', 'orca_rvo2' or 'diffusion', got {crowd_model!r}")
+    if human_model not in ("amp", "kinematic"):
+        raise ValueError(f"human_model must be 'amp' or 'kinematic', got {human_model!r}")
+    counts = people_per_scene(len(scenes)) if people is None else list(people)
+    if len(counts) != len(scenes):
+        raise ValueError(f"need one people count per scene, got {len(counts)} for {len(scenes)} scenes")
+    jobs = [(sc, n, seconds, seed, policy_dir) for sc, n in zip(scenes, counts, strict=True)]
+    if (crowd_model, human_model, pose_every) != ("sfm", "amp", 1):
+        jobs = [j + (pose_every, 20_000, crowd_model, human_model) for j in jobs]
     rows = _pool_map(follow_scene, jobs, workers)
     n_trips = sum(r["success"] + r["off_path"] + r["fall"] + r["timeout"] for r in rows)
     total = max(1, n_trips)
@@ -170,7 +247,8 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
         "fall_rate": sum(r["fall"] for r in rows) / total,
         "map_collision_rate": sum(r["map_trips"] for r in rows) / total,
         "agent_collision_rate": sum(r["agent_trips"] for r in rows) / total,
-        "path_error_m": sum(r["err_sum"] for r in rows) / max(1, sum(r["err_n"] for r in rows)),
+        "path_error_m": (sum(r["err_sum"] for r in rows) / max(1, sum(r["err_n"] for r in rows))
+                         if any(r["path_error"] for r in rows) else None),
         "timeout_rate": sum(r["timeout"] for r in rows) / total,
         "trips": n_trips,
         "trips_running": sum(r["running"] for r in rows),

@@ -1,0 +1,156 @@
+"""`navzoo eval crowd`: the realism metrics on hand-made tracks, the real-data loader, a tiny CLI run."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from navzoo.benchmark import crowd_eval as ce
+from navzoo.forecast import data as fdata
+
+DT = 0.4
+
+
+def test_constant_speed_line_has_known_speed_and_no_accel_or_jerk():
+    t = np.arange(50) * 0.1  # sim steps of 0.1 s, resampled to 0.4 s
+    xy = np.stack([1.3 * t, 0.5 + 0.0 * t], axis=1)
+    kin = ce.track_kinematics([(t, xy)])
+    assert kin["speed"].size == 12  # 4.9 s -> floor(4.9 / 0.4) + 1 = 13 samples at 0.4 s
+    np.testing.assert_allclose(kin["speed"], 1.3, atol=1e-9)
+    np.testing.assert_allclose(kin["accel"], 0.0, atol=1e-9)
+    np.testing.assert_allclose(kin["jerk"], 0.0, atol=1e-9)
+
+
+def test_kinematics_of_uniform_acceleration_and_circle():
+    k = np.arange(20) * DT
+    xy = np.stack([0.5 * 0.8 * k ** 2, np.zeros_like(k)], axis=1)  # a = 0.8 m/s^2 along x
+    kin = ce.kinematics(xy)
+    np.testing.assert_allclose(kin["accel"], 0.8, atol=1e-9)
+    np.testing.assert_allclose(kin["jerk"], 0.0, atol=1e-9)
+    assert kin["speed"].shape == (19,) and kin["accel"].shape == (18,) and kin["jerk"].shape == (17,)
+
+
+def test_resample_uses_the_given_time_base():
+    t = np.arange(10) * 0.667  # biwi_eth's step
+    xy = np.stack([1.5 * t, 0.0 * t], axis=1)
+    res = ce.resample(t, xy)
+    assert len(res) == int(np.floor(9 * 0.667 / 0.4)) + 1
+    np.testing.assert_allclose(np.diff(res[:, 0]) / DT, 1.5, atol=1e-9)
+    with pytest.raises(ValueError, match="increasing"):
+        ce.resample(np.array([0.0, 0.0]), np.zeros((2, 2)))
+
+
+def test_teleport_jumps_are_dropped():
+    k = np.arange(10) * DT
+    a = np.stack([k, np.zeros_like(k)], axis=1)  # 1 m/s
+    b = a + np.array([20.0, 5.0])  # a goal reset far away, then walking on at 1 m/s
+    xy = np.concatenate([a, b])
+    assert [len(p) for p in ce.continuous_pieces(xy)] == [10, 10]
+    kin = ce.track_kinematics([(np.arange(20) * DT, xy)])
+    np.testing.assert_allclose(kin["speed"], 1.0, atol=1e-9)
+    assert kin["speed"].size == 18 and kin["accel"].size == 16 and kin["jerk"].size == 14
+    np.testing.assert_allclose(kin["accel"], 0.0, atol=1e-9)
+
+
+def test_still_start_is_trimmed_but_a_stop_later_is_kept():
+    still = np.zeros((5, 2))
+    walk = np.stack([np.arange(1, 11) * 0.4, np.zeros(10)], axis=1)  # 1 m/s after 5 still samples
+    stop = np.repeat(walk[-1:], 3, axis=0)
+    xy = np.concatenate([still, walk, stop])
+    trimmed = ce.trim_still_start(xy)
+    assert len(trimmed) == len(xy) - 4  # the last still sample is where the walk starts
+    kin = ce.track_kinematics([(np.arange(len(xy)) * DT, xy)])
+    assert (kin["speed"] == 0).sum() == 3  # the stop at the end stays
+    assert ce.trim_still_start(np.zeros((6, 2))).shape == (0, 2)
+
+
+def test_collision_share_of_two_people_passing():
+    # Two people on parallel lines 0.5 m apart: never closer than 0.5 m; with x offset they meet once.
+    T = 41
+    x = np.linspace(-4.0, 4.0, T)
+    pos = np.stack([np.stack([x, np.zeros(T)], 1), np.stack([-x, np.full(T, 0.5)], 1)], axis=1)  # (T, 2, 2)
+    assert ce.collision_share(pos, 0.4) == (0, 2 * T)
+    # Closer than 0.6 m while |2 x| < sqrt(0.6^2 - 0.5^2) = 0.3317: |x| < 0.166 -> x in {-0.0, 0.0} (step 0.2)
+    dx = np.hypot(2 * x, 0.5)
+    expected = int((dx < 0.6).sum())
+    assert expected == 1
+    assert ce.collision_share(pos, 0.6) == (2 * expected, 2 * T)
+    # Someone absent does not collide, nor count.
+    present = np.ones((T, 2), dtype=bool)
+    present[:, 1] = False
+    assert ce.collision_share(pos, 0.6, present) == (0, T)
+
+
+def test_distances_of_identical_and_shifted_distributions():
+    rng = np.random.default_rng(0)
+    a = rng.normal(1.2, 0.2, 5000).clip(0)
+    same = ce.distribution_distance(a, a.copy(), ce.BINS["speed"])
+    assert same["w1"] == pytest.approx(0.0, abs=1e-12) and same["js"] == pytest.approx(0.0, abs=1e-12)
+    shifted = ce.distribution_distance(a + 0.5, a, ce.BINS["speed"])
+    assert shifted["w1"] == pytest.approx(0.5, abs=0.02)
+    assert 0.1 < shifted["js"] <= 1.0
+    assert np.isnan(ce.distribution_distance(np.zeros(0), a, ce.BINS["speed"])["w1"])
+
+
+@pytest.mark.skipif(not fdata.default_data_dir().is_dir(), reason="ETH/UCY data not available")
+def test_real_tracks_have_plausible_walking_speeds():
+    kin, summary = ce.real_data()
+    assert {f["scene"] for f in summary["files"]} >= {"biwi_eth", "crowds_zara01", "students001"}
+    biwi = next(f for f in summary["files"] if f["scene"] == "biwi_eth")
+    assert biwi["dt"] == pytest.approx(0.667)
+    # All samples (standing people included) ~0.9 m/s; moving people 1.0-1.1 m/s.
+    assert 0.7 < summary["speed_mean"] < 1.2
+    moving = kin["speed"][kin["speed"] > 0.2]
+    assert 0.9 < moving.mean() < 1.4
+    assert 0.0 < summary["collision_rate"] < summary["collision_rate_env_radius"] < 1.0
+    assert summary["samples"]["jerk"] > 10_000
+
+
+def test_bad_arguments_are_clear():
+    with pytest.raises(ValueError, match="unknown crowd model.*choose from"):
+        ce.realism(crowds=["social_force"], scenes=["lobby"], seconds=1.0)
+    with pytest.raises(ValueError, match="unknown scene"):
+        ce.evaluate(scenes=["atlantis"], seconds=1.0)
+    with pytest.raises(ValueError, match="unknown reliability row"):
+        ce.reliability(rows=["orca+amp"], scenes=["lobby"], seconds=1.0)
+
+
+def test_cli_tiny_run_prints_json(capsys, tmp_path):
+    from navzoo.cli import main
+
+    out = tmp_path / "crowd.json"
+    rc = main(["eval", "crowd", "--scenes", "lobby", "--people", "4", "--seconds", "8", "--crowds", "sfm,diffusion",
+               "--no-amp", "--no-cost", "--json", "--out", str(out)])
+    assert rc == 0
+    res = json.loads(capsys.readouterr().out)
+    assert json.loads(out.read_text())["partial"] is False
+    assert set(res) >= {"realism", "reliability", "machine"} and "cost" not in res
+    assert set(res["realism"]) >= {"sfm", "diffusion", "real"}
+    for crowd in ("sfm", "diffusion"):
+        row = res["realism"][crowd]
+        for q in ("speed", "accel", "jerk"):
+            assert {f"{q}_mean", f"{q}_w1", f"{q}_js"} <= set(row)
+        assert 0.0 <= row["collision_rate"] <= row["collision_rate_env_radius"] <= 1.0
+        assert 0.3 < row["speed_mean"] < 2.0
+    assert set(res["reliability"]) == {"sfm+kinematic", "diffusion+kinematic"}
+    for row in res["reliability"].values():
+        assert {"success_rate", "fall_rate", "map_collision_rate", "agent_collision_rate", "path_error_m",
+                "trips"} <= set(row)
+        assert row["fall_rate"] == 0.0
+    assert res["reliability"]["sfm+kinematic"]["path_error_m"] is None
+    assert res["reliability"]["diffusion+kinematic"]["path_error_m"] >= 0.0
+    md = ce.markdown(res)
+    assert "paper sfm+amp | 74.24" in md and "real (ETH/UCY)" in md
+    assert main(["eval", "crowd", "--crowds", "nope", "--no-cost"]) == 2
+
+
+def test_cost_timings_run_small():
+    rows = ce.replan_cost((2,), repeats=1, scene="lobby")
+    assert rows[0]["pedestrians"] == 2 and rows[0]["replan_ms"] > 0
+    step = ce.step_cost(scene="lobby", n=2, steps=25, warmup=2)
+    assert step["diffusion_replans"] >= 1  # 2.5 s of sim time: at least one replan in the timed steps
+    assert step["diffusion_step_ms"] > 0 and step["sfm_step_ms"] > 0 and step["diffusion_over_sfm"] > 0
+    md = ce.markdown({"cost": {"replan_cpu": rows, "step": step}})
+    assert "cpu replan (ms)" in md and "Env step (lobby" in md
