@@ -51,6 +51,12 @@ def build_parser() -> argparse.ArgumentParser:
     add_convert_arguments(convert)
     msub.add_parser("list", help="list the clips of the packaged library").add_argument("--json", action="store_true")
 
+    tracks = sub.add_parser("tracks", help="the packaged ETH/UCY recordings of the replay crowd")
+    trsub = tracks.add_subparsers(dest="tracks_command", metavar="ACTION")
+    tconv = trsub.add_parser("convert", help="convert ../shared/data/trajectories/eth_ucy into navzoo/assets/tracks")
+    tconv.add_argument("--data", default=None, help="ETH/UCY folder with all_data/ (default: the shared data folder)")
+    tconv.add_argument("--out", default=None, help="output folder (default: the package's assets/tracks)")
+
     train = sub.add_parser("train", help="train a model of navzoo")
     tsub = train.add_subparsers(dest="train_command", metavar="MODEL")
     from navzoo.agents.amp.train import add_arguments as add_amp_arguments
@@ -121,6 +127,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             return run_report_cli(args)
         if args.command == "motions":
             return _motions(args, parser)
+        if args.command == "tracks":
+            if args.tracks_command != "convert":
+                parser.parse_args(["tracks", "--help"])
+                return 2
+            from navzoo.agents.replay import convert_tracks
+
+            for path in convert_tracks(args.data, args.out):
+                print(path)
+            return 0
         if args.command == "train":
             return _train(args, parser)
         if args.command == "eval":

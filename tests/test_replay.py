@@ -27,7 +27,7 @@ AVAILABLE = [n for n, stems in RECORDINGS.items() if any(s in _FILES for s in st
 def _raw_tracks(name: str) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     """Straight from the file: each person's sample times (s) and positions in the scene's frame."""
     rec = load_recording(name)
-    tr = read_tracks(rec.path)
+    tr = read_tracks(_FILES[rec.stem])  # the shared text file, not the packaged copy
     f0 = tr.frame.min()
     out = {}
     for pid in np.unique(tr.ped):
@@ -187,7 +187,7 @@ def test_scene_contains_every_recorded_position_in_free_space(name):
     scene = get_scene(f"replay_{name}")
     assert scene.name == f"replay_{name}"
     rec = load_recording(name)
-    tr = read_tracks(rec.path)
+    tr = read_tracks(_FILES[rec.stem])  # the shared text file, not the packaged copy
     pts = tr.xy - rec.offset
     x0, y0, x1, y1 = scene.bounds
     assert np.all((pts[:, 0] > x0) & (pts[:, 0] < x1) & (pts[:, 1] > y0) & (pts[:, 1] < y1))
@@ -271,7 +271,7 @@ def test_bad_configs_are_clear_errors(kwargs, match):
 
 @pytest.mark.skipif("biwi_hotel" in _FILES, reason="hotel is in this data folder")
 def test_missing_recording_file_is_a_clear_error():
-    with pytest.raises(ValueError, match="'hotel'.*biwi_hotel.txt.*is not in"):
+    with pytest.raises(ValueError, match="'hotel'.*biwi_hotel.*is not in"):
         NavConfig(crowd_model="replay", replay_scene="hotel")
     with pytest.raises(ValueError, match="replay_<recording>"):
         get_scene("nowhere_scene")
@@ -320,3 +320,25 @@ def test_robot_episode_runs_to_the_end_with_a_baseline_and_renders():
     img = env.render()
     assert img.ndim == 3 and img.shape[2] == 3
     env.close()
+
+
+def test_packaged_tracks_equal_the_shared_text_files(tmp_path):
+    from navzoo.agents import replay
+    from navzoo.forecast.data import default_data_dir, discover, read_tracks
+
+    files = discover(default_data_dir())["all"]
+    assert files, "the shared ETH/UCY data is needed for this test"
+    for stem, path in files.items():
+        packaged = replay._read_npz(replay.TRACKS_DIR / f"{stem}.npz")
+        text = read_tracks(path)
+        assert packaged.dt == text.dt and packaged.frame_step == text.frame_step
+        np.testing.assert_array_equal(packaged.frame, text.frame)
+        np.testing.assert_array_equal(packaged.ped, text.ped)
+        np.testing.assert_array_equal(packaged.xy, text.xy)
+    # The converter writes the same files again.
+    written = replay.convert_tracks(out_dir=tmp_path)
+    assert sorted(p.name for p in written) == sorted(f"{s}.npz" for s in files)
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, frame=np.zeros(3))
+    with pytest.raises(ValueError, match="not a navzoo track file"):
+        replay._read_npz(bad)

@@ -6,8 +6,9 @@ see :func:`replay_scene`). This is SocNavBench's setting: the robot navigates am
 people who **do not react to it** (they walk their recorded paths whatever the robot does, and may
 walk into it; that is counted as the robot's collision, as in SocNavBench).
 
-Recordings (the common ETH/UCY text files of ``navzoo.forecast.data.default_data_dir()``, i.e.
-``$NAVZOO_SHARED_DATA/trajectories/eth_ucy`` or ``<repo>/../shared/data/trajectories/eth_ucy``):
+Recordings ship with the package in ``navzoo/assets/tracks/<file stem>.npz`` (arrays only), converted
+from the ETH/UCY text files of the shared data set by ``navzoo tracks convert`` (:func:`convert_tracks`);
+:func:`load_recording` with a ``data_dir`` reads the text files of that folder instead:
 
 ============ ==================== =========================================================
 name         file (``all_data/``) notes
@@ -54,6 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
+from navzoo.forecast.data import Tracks
 from navzoo.world.scene import Protocol, Scene, WallObstacle
 
 __all__ = [
@@ -62,6 +64,7 @@ __all__ = [
     "Recording",
     "ReplayCrowd",
     "canonical_recording",
+    "convert_tracks",
     "load_recording",
     "replay_scene",
     "scene_from_name",
@@ -81,6 +84,9 @@ _ALIASES: dict[str, str] = {name: name for name in RECORDINGS}
 for _name, _stems in RECORDINGS.items():
     for _stem in _stems:
         _ALIASES.setdefault(_stem, _name)
+#: The packaged recordings (``navzoo tracks convert`` writes them from the shared ETH/UCY files).
+TRACKS_DIR = Path(__file__).resolve().parents[1] / "assets" / "tracks"
+TRACKS_FORMAT = 1
 SCENE_PREFIX = "replay_"
 #: Free space kept around the recording's bounding box, inside the walls (m).
 SCENE_MARGIN = 1.0
@@ -149,21 +155,67 @@ class Recording:
 
 
 def _find_file(name: str, data_dir: Path | None) -> Path:
-    from navzoo.forecast.data import default_data_dir, discover
+    """The recording's file: a packaged ``.npz`` (``data_dir`` None) or a text file of ``data_dir``."""
+    if data_dir is None:
+        root = TRACKS_DIR
+        files = {p.stem: p for p in sorted(root.glob("*.npz"))}
+    else:
+        from navzoo.forecast.data import discover
 
-    root = Path(data_dir) if data_dir is not None else default_data_dir()
-    try:
-        files = discover(root)["all"] or discover(root)["train"]
-    except FileNotFoundError as exc:
-        raise FileNotFoundError(
-            f"replay recording {name!r} needs the ETH/UCY trajectory files, but {exc}; "
-            "set NAVZOO_SHARED_DATA to the folder holding trajectories/eth_ucy") from None
+        root = Path(data_dir)
+        try:
+            found = discover(root)
+        except FileNotFoundError as exc:
+            raise FileNotFoundError(f"replay recording {name!r}: {exc}") from None
+        files = found["all"] or found["train"]
     for stem in RECORDINGS[name]:
         if stem in files:
             return files[stem]
     have = [n for n, stems in RECORDINGS.items() if any(s in files for s in stems)]
-    raise ValueError(f"replay recording {name!r} ({' or '.join(s + '.txt' for s in RECORDINGS[name])}) is not in "
-                     f"{root}; recordings available there: {', '.join(have) or 'none'}")
+    where = f"the packaged tracks ({root})" if data_dir is None else str(root)
+    raise ValueError(f"replay recording {name!r} ({' or '.join(RECORDINGS[name])}) is not in "
+                     f"{where}; recordings available there: {', '.join(have) or 'none'}")
+
+
+def _read_npz(path: Path) -> Tracks:
+    """A packaged recording written by :func:`convert_tracks` (arrays only, no pickles)."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if int(z["format_version"]) != TRACKS_FORMAT:
+                raise ValueError(f"format version {int(z['format_version'])}, expected {TRACKS_FORMAT}")
+            return Tracks(scene=str(z["scene"]), dt=float(z["dt"]), frame_step=int(z["frame_step"]),
+                          frame=z["frame"].astype(np.int64), ped=z["ped"].astype(np.int64),
+                          xy=z["xy"].astype(np.float64), path=path)
+    except (KeyError, ValueError, OSError) as exc:
+        raise ValueError(f"{path}: not a navzoo track file ({exc}); rebuild the packaged tracks with "
+                         "`navzoo tracks convert`") from None
+
+
+def convert_tracks(data_dir: str | Path | None = None, out_dir: str | Path | None = None) -> list[Path]:
+    """Convert the ETH/UCY text files (``all_data/`` of ``data_dir``, default the shared data folder)
+    into the packaged ``<stem>.npz`` files of ``out_dir`` (default :data:`TRACKS_DIR`): frame and
+    pedestrian ids, positions (float64, as in the files), the time step (biwi_eth 0.667 s) and the
+    source file's SHA-256. Returns the files written. ``navzoo tracks convert`` runs it."""
+    import hashlib
+
+    from navzoo.forecast.data import default_data_dir, discover, read_tracks
+
+    root = Path(data_dir) if data_dir is not None else default_data_dir()
+    files = discover(root)["all"]
+    if not files:
+        raise FileNotFoundError(f"no ETH/UCY files in {root / 'all_data'}")
+    out = Path(out_dir) if out_dir is not None else TRACKS_DIR
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for stem, path in sorted(files.items()):
+        tr = read_tracks(path)
+        target = out / f"{stem}.npz"
+        np.savez_compressed(target, format_version=np.int64(TRACKS_FORMAT), scene=np.str_(tr.scene),
+                            dt=np.float64(tr.dt), frame_step=np.int64(tr.frame_step), frame=tr.frame.astype(np.int32),
+                            ped=tr.ped.astype(np.int32), xy=tr.xy,
+                            source_sha256=np.str_(hashlib.sha256(path.read_bytes()).hexdigest()))
+        written.append(target)
+    return written
 
 
 @functools.cache
@@ -171,7 +223,7 @@ def _load(name: str, data_dir: str | None) -> Recording:
     from navzoo.forecast.data import read_tracks
 
     path = _find_file(name, Path(data_dir) if data_dir else None)
-    tracks = read_tracks(path)
+    tracks = _read_npz(path) if path.suffix == ".npz" else read_tracks(path)
     step = (tracks.frame - tracks.frame.min()) // tracks.frame_step
     lo, hi = tracks.xy.min(axis=0), tracks.xy.max(axis=0)
     offset = np.round(0.5 * (lo + hi), 1)
