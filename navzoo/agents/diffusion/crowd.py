@@ -8,7 +8,8 @@ Every ``replan_s`` seconds (2 s) all pedestrians of a world are planned in one b
    the training windows were;
 2. the occupancy crop of the scene around the person (8 m, 32 cells, the same frame) conditions the
    model, and the scene's distance field on the same crop feeds the wall guidance;
-3. ``n_samples`` futures (12 steps = 4.8 s) are drawn by DDIM with "clean" guidance: the end point
+3. ``n_samples`` futures (12 steps = 4.8 s) are drawn by DDIM (a goal-conditioned model, ``cfg.goal``,
+   gets that waypoint as its goal) with "clean" guidance: the end point
    is pulled to the point of the person's A* path that lies ``v_pref x 4.8 s`` ahead (the sparse
    global waypoint), and samples are pushed off other people's current plans and off walls;
 4. of each person's samples the one of lowest guidance cost is kept, in world coordinates.
@@ -179,6 +180,9 @@ class DiffusionCrowd:
         target_w = np.array([_ahead_on_path(env.paths[i][env.wp_index[i]:], env.pos[i], env.v_pref[i] * horizon_s)
                              for i in people])
         target = fdata.to_local(target_w[:, None, :], local)[:, 0]
+        if self.cfg.goal:  # a goal-conditioned model gets the waypoint as its goal (guidance still pulls)
+            batch["goal"] = torch.as_tensor(target, dtype=torch.float32)
+            batch["has_goal"] = torch.as_tensor(~standing)
         t_w, a_w, m_w = self.weights
         costs = [target_cost(torch.as_tensor(target, dtype=torch.float32), t_w,
                              valid=torch.as_tensor(~standing))]

@@ -53,6 +53,11 @@ class DiffusionConfig:
         vel_scale: velocities are divided by this (m/s) inside the network.
         pos_loss: weight of the position loss (the velocity loss has weight 1).
         dropout: dropout inside the U-Net's residual blocks and the conditioning MLPs (training only).
+        goal: condition on a goal, the position to be at the end of the horizon (agent frame; the
+            batch's ``goal (B, 2)`` with ``has_goal (B,)``): in training the true end point, given with
+            probability ``1 - goal_drop``, so that one model forecasts with and without a goal; in the
+            loop the point of the A* path ``v_pref x horizon`` ahead (the sparse global waypoint).
+        goal_drop: probability of withholding the goal per training sample.
     """
 
     history: int = 8
@@ -67,6 +72,8 @@ class DiffusionConfig:
     vel_scale: float = 1.5
     pos_loss: float = 1.0
     dropout: float = 0.0
+    goal: bool = False
+    goal_drop: float = 0.5
 
     def __post_init__(self) -> None:
         for name in ("history", "horizon", "base", "cond_dim", "steps", "sample_steps"):
@@ -85,6 +92,10 @@ class DiffusionConfig:
             raise ValueError(f"DiffusionConfig.map_cells must be 0 or a positive multiple of 8, got {self.map_cells!r}")
         if not 0.0 <= self.dropout < 1.0:
             raise ValueError(f"DiffusionConfig.dropout must be in [0, 1), got {self.dropout!r}")
+        if not 0.0 <= self.goal_drop <= 1.0:
+            raise ValueError(f"DiffusionConfig.goal_drop must be in [0, 1], got {self.goal_drop!r}")
+        if not isinstance(self.goal, bool):
+            raise ValueError(f"DiffusionConfig.goal must be a bool, got {self.goal!r}")
         if not 0.0 <= self.cond_drop < 1.0:
             raise ValueError(f"DiffusionConfig.cond_drop must be in [0, 1), got {self.cond_drop!r}")
         for name in ("vel_scale",):
@@ -149,7 +160,7 @@ class _ResBlock(nn.Module):
 
 
 class _Conditioner(nn.Module):
-    """History, neighbours, map and dt -> one conditioning vector."""
+    """History, neighbours, map, goal and dt -> one conditioning vector."""
 
     def __init__(self, cfg: DiffusionConfig) -> None:
         super().__init__()
@@ -166,9 +177,14 @@ class _Conditioner(nn.Module):
                 nn.Flatten(), nn.Linear(32 * (cfg.map_cells // 8) ** 2, 64),
             )
             self.no_map = nn.Parameter(torch.zeros(64))
-        self.out = nn.Sequential(nn.Linear(128 + 128 + (64 if cfg.map_cells else 0) + 1, d), nn.Mish(), nn.Linear(d, d))
+        if cfg.goal:
+            self.goal = nn.Sequential(nn.Linear(2, 64), nn.Mish(), nn.Linear(64, 64))
+            self.no_goal = nn.Parameter(torch.zeros(64))
+        width = 128 + 128 + (64 if cfg.map_cells else 0) + (64 if cfg.goal else 0) + 1
+        self.out = nn.Sequential(nn.Linear(width, d), nn.Mish(), nn.Linear(d, d))
 
-    def forward(self, batch: dict[str, Tensor], drop: Tensor | None = None) -> Tensor:
+    def forward(self, batch: dict[str, Tensor], drop: Tensor | None = None,
+                goal_drop: Tensor | None = None) -> Tensor:
         cfg = self.cfg
         hist, dt = batch["hist"], batch["dt"]
         B = hist.shape[0]
@@ -204,6 +220,17 @@ class _Conditioner(nn.Module):
             if drop is not None:
                 has_map = has_map & ~drop
             parts.append(torch.where(has_map[:, None], m, self.no_map.expand(B, -1)))
+        if cfg.goal:
+            goal = batch.get("goal")
+            if goal is not None:
+                g = self.goal(goal.float() / (s * cfg.horizon * 0.4))  # ~1 for a walk at vel_scale
+                has_goal = batch.get("has_goal", torch.ones(B, dtype=torch.bool, device=hist.device)).bool()
+            else:
+                g = torch.zeros(B, 64, device=hist.device)
+                has_goal = torch.zeros(B, dtype=torch.bool, device=hist.device)
+            if goal_drop is not None:
+                has_goal = has_goal & ~goal_drop
+            parts.append(torch.where(has_goal[:, None], g, self.no_goal.expand(B, -1)))
         parts.append(dt.reshape(B, 1).float())
         return self.out(torch.cat(parts, dim=-1))
 
@@ -219,7 +246,8 @@ class TrajectoryDiffusion(nn.Module):
 
     Batches are dicts of tensors in the agent frame: ``hist (B, T, 2)``, ``dt (B,)``, optionally
     ``neigh (B, K, T, 2)`` with ``neigh_mask (B, K, T)`` (bool), ``map (B, C, C)`` occupancy in
-    [0, 1] with ``has_map (B,)``, and for training ``fut (B, H, 2)`` future positions.
+    [0, 1] with ``has_map (B,)``, ``goal (B, 2)`` with ``has_goal (B,)`` (models with ``cfg.goal``),
+    and for training ``fut (B, H, 2)`` future positions.
     """
 
     def __init__(self, cfg: DiffusionConfig | None = None) -> None:
@@ -280,7 +308,13 @@ class TrajectoryDiffusion(nn.Module):
         ab = self.abar[t].reshape(-1, 1, 1)
         xt = ab.sqrt() * x0 + (1 - ab).sqrt() * noise
         drop = torch.rand(B, device=dev, generator=generator) < cfg.cond_drop if self.training else None
-        cond = self.cond(batch, drop)
+        if cfg.goal:  # the true end point as the goal, withheld with probability goal_drop
+            batch = {**batch, "goal": fut[:, -1], "has_goal": torch.ones(B, dtype=torch.bool, device=dev)}
+            # (also in eval mode: the validation loss is the training objective, with and without goals)
+            goal_drop = torch.rand(B, device=dev, generator=generator) < cfg.goal_drop
+        else:
+            goal_drop = None
+        cond = self.cond(batch, drop, goal_drop)
         x0_hat = self.denoise(xt, t, cond)
         l_vel = F.mse_loss(x0_hat, x0)
         pos_hat = integrate(x0_hat * cfg.vel_scale, dt)

@@ -55,6 +55,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--base", type=int, default=16, help="U-Net width of the first level")
     parser.add_argument("--dropout", type=float, default=0.1)
     parser.add_argument("--cond-drop", type=float, default=0.2, help="probability of dropping neighbours (and map)")
+    parser.add_argument("--goal", action="store_true",
+                        help="condition on the end point of the horizon (the crowd's waypoint in the loop)")
+    parser.add_argument("--goal-drop", type=float, default=0.5, help="probability of withholding the goal in training")
     parser.add_argument("--weight-decay", type=float, default=1e-4)
     parser.add_argument("--no-augment", action="store_true", help="train on the windows as they are")
     parser.add_argument("--export", default=None, metavar="DIR", help="write the trained model here at the end")
@@ -73,7 +76,8 @@ def run_cli(args: argparse.Namespace) -> int:
     log(f"{sum(desc['train_windows'].values())} training windows {desc['train_windows']}, "
         f"{sum(desc['val_windows'].values())} validation windows, loaded in {time.time() - t0:.1f} s")
     # ETH/UCY windows carry no map (docs/crowd.md); 16k windows call for a small, regularised model.
-    model_cfg = DiffusionConfig(base=args.base, map_cells=0, dropout=args.dropout, cond_drop=args.cond_drop)
+    model_cfg = DiffusionConfig(base=args.base, map_cells=0, dropout=args.dropout, cond_drop=args.cond_drop,
+                                goal=args.goal, goal_drop=args.goal_drop)
     cfg = TrainConfig(steps=args.steps, batch_size=args.batch_size, lr=args.lr, device=args.device, seed=args.seed,
                       time_limit_s=args.time_limit_s, ckpt_every=args.ckpt_every, eval_every=args.eval_every,
                       weight_decay=args.weight_decay, augment=not args.no_augment)
