@@ -44,8 +44,8 @@ class NavConfig:
             (real ETH/UCY tracks played back unchanged in the recording's open scene: people do not
             react to robots, pedestrian actions are ignored; kinematic bodies only;
             :mod:`navzoo.agents.replay`, docs/crowd.md "Replay crowd").
-        diffusion_model: ``crowd_model="diffusion"``: directory of an exported model (None = the
-            shipped ``policies/trajectory_diffusion``).
+        diffusion_model: ``crowd_model="diffusion"``: directory of an exported model (None =
+            ``$NAVZOO_DIFFUSION_MODEL`` if set, else the shipped ``policies/trajectory_diffusion``).
         diffusion_samples: ``crowd_model="diffusion"``: futures sampled per person and plan (the one
             of lowest guidance cost is walked).
         replay_scene: ``crowd_model="replay"``: the recording to play (``"eth"``, ``"univ"``,

@@ -8,7 +8,7 @@ import torch
 from pettingzoo.test import parallel_api_test
 
 from navzoo.agents.crowd import CrowdPolicy
-from navzoo.agents.diffusion.crowd import DiffusionCrowd, _ahead_on_path
+from navzoo.agents.diffusion.crowd import DiffusionCrowd, _ahead_from_nearest, _ahead_on_path
 from navzoo.agents.diffusion.model import DiffusionConfig, TrajectoryDiffusion
 from navzoo.agents.diffusion.trainer import TrainConfig, export, train
 from navzoo.envs.nav_env import NavEnv
@@ -37,6 +37,20 @@ def test_ahead_on_path_walks_the_polyline():
     np.testing.assert_allclose(_ahead_on_path(path, np.zeros(2), 0.5), [0.5, 0.0])
     np.testing.assert_allclose(_ahead_on_path(path, np.zeros(2), 2.0), [1.0, 1.0])
     np.testing.assert_allclose(_ahead_on_path(path, np.zeros(2), 9.0), [1.0, 2.0])
+    # extend: beyond the end along the last segment's line
+    np.testing.assert_allclose(_ahead_on_path(path, np.zeros(2), 4.0, extend=True), [1.0, 3.0])
+
+
+def test_target_is_measured_from_the_nearest_path_point_not_a_missed_waypoint():
+    path = np.array([[float(x), 0.0] for x in range(11)])  # 0..10 m along x
+    # The person passed waypoints 1..5 half a metre to the side: the env's index is still 1.
+    pos = np.array([5.2, 0.5])
+    np.testing.assert_allclose(_ahead_from_nearest(path, 1, pos, 3.0), [8.2, 0.0])
+    # Near the end: held at the goal, or carried on past it along the last segment.
+    np.testing.assert_allclose(_ahead_from_nearest(path, 9, np.array([9.0, 0.2]), 3.0), [10.0, 0.0])
+    np.testing.assert_allclose(_ahead_from_nearest(path, 9, np.array([9.0, 0.2]), 3.0, extend=True), [12.0, 0.0])
+    # A one-point path (the goal): toward it from the position.
+    np.testing.assert_allclose(_ahead_from_nearest(np.array([[4.0, 0.0]]), 0, np.zeros(2), 1.0), [1.0, 0.0])
 
 
 def test_missing_model_is_a_clear_error(tmp_path):

@@ -44,22 +44,55 @@ MAP_EXTENT = 8.0  # m, side of the occupancy / distance crops
 
 
 def default_model_dir() -> Path:
-    """The shipped model: ``policies/trajectory_diffusion``."""
+    """``$NAVZOO_DIFFUSION_MODEL`` when set (as for ``navzoo eval forecast``), else the shipped model
+    ``policies/trajectory_diffusion``."""
+    import os
+
     import policies
 
-    return Path(list(policies.__path__)[0]) / "trajectory_diffusion"
+    env_dir = os.environ.get("NAVZOO_DIFFUSION_MODEL")
+    return Path(env_dir) if env_dir else Path(list(policies.__path__)[0]) / "trajectory_diffusion"
 
 
-def _ahead_on_path(path: np.ndarray, pos: np.ndarray, distance: float) -> np.ndarray:
-    """The point ``distance`` metres along ``[pos] + path`` (its end if the path is shorter)."""
+def _ahead_on_path(path: np.ndarray, pos: np.ndarray, distance: float, extend: bool = False) -> np.ndarray:
+    """The point ``distance`` metres along ``[pos] + path``; if the path is shorter, its end, or with
+    ``extend`` the point that far along the line through the path's last segment, beyond its end."""
     pts = np.vstack([pos[None], path])
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
     cum = np.concatenate([[0.0], np.cumsum(seg)])
     if distance >= cum[-1]:
-        return pts[-1].copy()
+        nz = np.flatnonzero(seg > 1e-9)
+        if not extend or nz.size == 0:
+            return pts[-1].copy()
+        k = nz[-1]
+        return pts[-1] + (distance - cum[-1]) * (pts[k + 1] - pts[k]) / seg[k]
     k = int(np.searchsorted(cum, distance, side="right") - 1)
     f = (distance - cum[k]) / max(seg[k], 1e-9)
     return pts[k] + f * (pts[k + 1] - pts[k])
+
+
+def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance: float,
+                        extend: bool = False) -> np.ndarray:
+    """The point ``distance`` metres ahead along the A* ``path`` from the point of the path nearest
+    to ``pos``, searched from the segment that ends at waypoint ``start`` (the env's current one) on.
+
+    Plans stray from the path more than the rule-based crowds, so a person often passes a waypoint
+    outside the env's waypoint tolerance and its waypoint index stays behind: measuring from the
+    current waypoint would then put the target behind the person.
+    """
+    pts = np.vstack([pos[None], path]) if len(path) == 1 else path
+    first = max(0, start - 1) if len(path) > 1 else 0
+    a, b = pts[first:-1], pts[first + 1:]
+    if len(a) == 0:
+        return _ahead_on_path(path[start:], pos, distance, extend)
+    ab = b - a
+    L2 = np.maximum(np.sum(ab * ab, axis=1), 1e-12)
+    f = np.clip(np.sum((pos - a) * ab, axis=1) / L2, 0.0, 1.0)
+    proj = a + f[:, None] * ab
+    d = np.linalg.norm(proj - pos, axis=1)
+    k = int(np.flatnonzero(d <= d.min() + 1e-9)[-1])  # the nearest; the farthest along on ties
+    rest = np.vstack([proj[k][None], pts[first + k + 1:]])
+    return _ahead_on_path(rest[1:], rest[0], distance, extend)
 
 
 class DiffusionCrowd:
@@ -123,6 +156,7 @@ class DiffusionCrowd:
         self.hist_time = env.sim_time
         self.plan: np.ndarray | None = None  # (H, steps + 1, 2) world positions of pedestrians
         self.plan_time = -np.inf
+        self._goals_at_plan = -1
         self.plans_made = 0
 
     def observe(self, env: NavEnv) -> None:
@@ -177,8 +211,12 @@ class DiffusionCrowd:
         # Guidance: the path point v_pref x horizon ahead, others' current plans, the scene's walls.
         horizon_s = H * MODEL_DT
         standing = env.arrived[people] | env.human_fallen
-        target_w = np.array([_ahead_on_path(env.paths[i][env.wp_index[i]:], env.pos[i], env.v_pref[i] * horizon_s)
-                             for i in people])
+        # People who walk on to a new goal keep their pace through the goal: near it, the target lies
+        # beyond it on the path's last line (else every plan would end at the goal, and each replan
+        # would slow down further as the goal comes closer); people who stop there aim at it.
+        extend = env.config.human_at_goal != "stop"
+        target_w = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i],
+                                                 env.v_pref[i] * horizon_s, extend) for i in people])
         target = fdata.to_local(target_w[:, None, :], local)[:, 0]
         if self.cfg.goal:  # a goal-conditioned model gets the waypoint as its goal (guidance still pulls)
             batch["goal"] = torch.as_tensor(target, dtype=torch.float32)
@@ -214,6 +252,7 @@ class DiffusionCrowd:
         plan[standing] = env.pos[people][standing][:, None, :]  # arrived or fallen people stay
         self.plan = plan
         self.plan_time = env.sim_time
+        self._goals_at_plan = int(env.goals_reached[R:].sum())
         self.plans_made += 1
         return plan
 
@@ -247,7 +286,10 @@ class DiffusionCrowd:
 
     # ------------------------------------------------------------------ outputs
     def maybe_plan(self, env: NavEnv, force: bool = False) -> None:
-        if force or self.plan is None or env.sim_time - self.plan_time >= self.replan_s - 1e-9:
+        """Plan when ``replan_s`` has passed since the last plan, or when someone got a new goal."""
+        goals = int(env.goals_reached[env.n_robots:].sum())
+        if (force or self.plan is None or env.sim_time - self.plan_time >= self.replan_s - 1e-9
+                or goals != self._goals_at_plan):
             self.plan_now(env)
 
     def preferred_velocities(self, env: NavEnv, lookahead: float = 0.8) -> np.ndarray:
