@@ -6,6 +6,15 @@ side of a split: ``--split val`` trains on the files' ``train`` part of all five
 on their ``val`` part; ``--split loo --test-scene S`` trains on the other four scenes' whole
 recordings. Training resumes from ``<out>/checkpoint`` when the same command runs again; ``--export
 DIR`` writes the EMA weights as a shippable model (``model.pt`` + ``config.json``).
+
+Map-aware training: ``--sim-data FILE.npz --map-cells 32`` adds the windows of simulated crowds in
+navzoo scenes (:mod:`navzoo.forecast.sim_data`, each with the occupancy crop around the person) to
+the ETH/UCY training windows; ETH/UCY windows get an all-zero map with ``has_map=False`` (the model's
+"no map" embedding). ``--map-cells`` (default 0: no map input, as before) must equal the file's crop
+size. The sim windows of a few whole scenes (``--sim-val-frac`` of the scenes, both crowds) are held
+out and validated separately (``val_loss_sim`` in ``metrics.jsonl``); the best weights are still
+chosen on the ETH/UCY validation windows. The sim data's description (file, scenes, crowds,
+seconds, windows per scene) is recorded in the checkpoint's and the export's ``data.sim_data``.
 """
 
 from __future__ import annotations
@@ -22,7 +31,7 @@ import numpy as np
 from navzoo.agents.diffusion.model import DiffusionConfig
 from navzoo.agents.diffusion.trainer import TrainConfig, export, train
 
-__all__ = ["add_arguments", "load_data", "main", "run_cli"]
+__all__ = ["add_arguments", "load_data", "load_sim_data", "main", "run_cli"]
 
 
 def load_data(split: str = "val", test_scene: str | None = None, data_dir: str | None = None,
@@ -36,6 +45,60 @@ def load_data(split: str = "val", test_scene: str | None = None, data_dir: str |
     train_w, val_w = fdata.concat(tr.values()), fdata.concat(te.values())
     desc = {"split": split, "test_scene": test_scene, "train_windows": {k: fdata.batch_size(v) for k, v in tr.items()},
             "val_windows": {k: fdata.batch_size(v) for k, v in te.items()}}
+    return train_w, val_w, desc
+
+
+# What the trainer reads of a window (the rest is dropped to save memory when sim windows are added).
+_MODEL_KEYS = ("hist", "fut", "dt", "neigh", "neigh_mask", "map", "has_map", "scene")
+
+
+def _sim_scene(label: str) -> str:
+    return str(label).rsplit("/", 1)[-1]  # "sim/<crowd>/<scene>" -> "<scene>"
+
+
+def load_sim_data(path: str, map_cells: int, val_frac: float = 0.1, seed: int = 0
+                  ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray] | None, dict[str, Any]]:
+    """(train windows, held-out windows or None, description) of a sim-windows file.
+
+    The held-out part is the windows of ``round(val_frac x scenes)`` whole scenes spread over the
+    sorted scene names (none with fewer than two scenes), shuffled with ``seed``. With
+    ``map_cells == 0`` the maps are dropped (the model has no map input).
+
+    Raises:
+        ValueError: If the file's crop size or extent does not match ``map_cells`` and the crowd's crop.
+    """
+    from navzoo.agents.diffusion.crowd import MAP_EXTENT
+    from navzoo.forecast import data as fdata
+    from navzoo.forecast.sim_data import load_sim_dataset
+
+    windows, info = load_sim_dataset(path)
+    if map_cells:
+        if int(info["map_cells"]) != map_cells:
+            raise ValueError(f"{path} has {info['map_cells']}-cell map crops; train with --map-cells {info['map_cells']}")
+        if abs(float(info["map_extent"]) - MAP_EXTENT) > 1e-9:
+            raise ValueError(f"{path} has {info['map_extent']} m crops, the diffusion crowd uses {MAP_EXTENT} m")
+    windows = {k: v for k, v in windows.items() if k in _MODEL_KEYS and (map_cells or k not in ("map", "has_map"))}
+    base = np.array([_sim_scene(s) for s in windows["scene"]])
+    scenes = sorted(set(base.tolist()))
+    m = int(round(val_frac * len(scenes))) if len(scenes) >= 2 else 0
+    m = min(m, len(scenes) - 1)
+    held = [scenes[int(i)] for i in np.unique(np.round(np.linspace(0, len(scenes) - 1, m + 2)[1:-1]))] if m else []
+    is_val = np.isin(base, held)
+    train_w = fdata.subset(windows, ~is_val)
+    val_w = None
+    if is_val.any():
+        val_w = fdata.subset(windows, np.random.default_rng(seed).permutation(np.flatnonzero(is_val)))
+
+    def per_scene(w: dict[str, np.ndarray] | None) -> dict[str, int]:
+        if w is None:
+            return {}
+        names, counts = np.unique(w["scene"], return_counts=True)
+        return {str(a): int(b) for a, b in zip(names, counts, strict=True)}
+
+    desc = {"path": str(path), "scenes": info["scenes"], "crowds": info["crowds"], "seconds": info["seconds"],
+            "people": info["people"], "seed": info["seed"], "map_cells": info["map_cells"],
+            "map_extent": info["map_extent"], "windows": info["windows"], "held_out_scenes": held,
+            "train_windows": per_scene(train_w), "val_windows": per_scene(val_w)}
     return train_w, val_w, desc
 
 
@@ -60,6 +123,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--goal-drop", type=float, default=0.5, help="probability of withholding the goal in training")
     parser.add_argument("--weight-decay", type=float, default=1e-4)
     parser.add_argument("--no-augment", action="store_true", help="train on the windows as they are")
+    parser.add_argument("--map-cells", type=int, default=0,
+                        help="occupancy-crop input of the model (cells over 8 m; 0 = no map input)")
+    parser.add_argument("--sim-data", default=None, metavar="NPZ",
+                        help="add map-aware windows of simulated crowds (python -m navzoo.forecast.sim_data)")
+    parser.add_argument("--sim-val-frac", type=float, default=0.1,
+                        help="share of the sim scenes held out for a separate validation loss")
     parser.add_argument("--export", default=None, metavar="DIR", help="write the trained model here at the end")
     parser.add_argument("--json", action="store_true", help="print the final summary as JSON")
 
@@ -75,14 +144,34 @@ def run_cli(args: argparse.Namespace) -> int:
 
     log(f"{sum(desc['train_windows'].values())} training windows {desc['train_windows']}, "
         f"{sum(desc['val_windows'].values())} validation windows, loaded in {time.time() - t0:.1f} s")
+    extra_val = None
+    map_cells, sim_data = getattr(args, "map_cells", 0), getattr(args, "sim_data", None)
+    if sim_data:
+        from navzoo.forecast import data as fdata
+        from navzoo.forecast.sim_data import with_map
+
+        sim_train, sim_val, sim_desc = load_sim_data(sim_data, map_cells, getattr(args, "sim_val_frac", 0.1), args.seed)
+        keep = lambda w: {k: v for k, v in w.items() if k in _MODEL_KEYS}  # noqa: E731
+        train_w, val_w = keep(train_w), keep(val_w)
+        if map_cells:  # ETH/UCY: zero map, has_map False
+            train_w, val_w = with_map(train_w, map_cells), with_map(val_w, map_cells)
+        train_w = fdata.concat([train_w, sim_train])
+        if sim_val is not None:
+            extra_val = {"sim": sim_val}
+        desc["sim_data"] = sim_desc
+        log(f"+ {sum(sim_desc['train_windows'].values())} sim training windows from {sim_data}"
+            f" ({len(sim_desc['train_windows'])} scene/crowd runs), "
+            f"{sum(sim_desc['val_windows'].values())} held out (scenes {sim_desc['held_out_scenes']})")
+    elif map_cells:
+        log(f"--map-cells {map_cells} without --sim-data: no window has a map (the model learns only its 'no map' input)")
     # ETH/UCY windows carry no map (docs/crowd.md); 16k windows call for a small, regularised model.
-    model_cfg = DiffusionConfig(base=args.base, map_cells=0, dropout=args.dropout, cond_drop=args.cond_drop,
-                                goal=args.goal, goal_drop=args.goal_drop)
+    model_cfg = DiffusionConfig(base=args.base, map_cells=map_cells, dropout=args.dropout,
+                                cond_drop=args.cond_drop, goal=args.goal, goal_drop=args.goal_drop)
     cfg = TrainConfig(steps=args.steps, batch_size=args.batch_size, lr=args.lr, device=args.device, seed=args.seed,
                       time_limit_s=args.time_limit_s, ckpt_every=args.ckpt_every, eval_every=args.eval_every,
                       weight_decay=args.weight_decay, augment=not args.no_augment)
     command = "navzoo train diffusion " + " ".join(sys.argv[3:] if sys.argv[1:3] == ["train", "diffusion"] else sys.argv[1:])
-    summary = train(model_cfg, cfg, train_w, args.out, val_w, log=log, extra_meta={"data": desc})
+    summary = train(model_cfg, cfg, train_w, args.out, val_w, log=log, extra_meta={"data": desc}, extra_val=extra_val)
     if args.export:
         export(Path(args.out) / "checkpoint", args.export, card={"data": desc, "command": command})
         summary["export"] = args.export

@@ -30,7 +30,7 @@ import torch
 from navzoo.agents.amp.checkpoint import sha256_file
 from navzoo.agents.diffusion.model import DiffusionConfig, TrajectoryDiffusion
 
-__all__ = ["TrainConfig", "export", "load_model", "train", "windows_to_batch"]
+__all__ = ["TrainConfig", "augment", "export", "load_model", "train", "warp_maps", "windows_to_batch"]
 
 FORMAT = "navzoo-trajectory-diffusion"
 VERSION = 1
@@ -76,7 +76,9 @@ def augment(windows: dict[str, np.ndarray], rng: np.random.Generator, mirror: fl
     about the current position by up to ``max_turn_deg`` (the heading estimate of the last step is
     noisy), a common speed factor from ``scale`` (all positions scaled), each neighbour dropped with
     probability ``drop_neighbor`` and Gaussian noise of ``hist_noise`` m on the observed points (the
-    current position stays the origin). Futures get the same linear map, never noise.
+    current position stays the origin). Futures get the same linear map, never noise. An occupancy
+    crop ``map`` (agent frame, see :func:`warp_maps`) gets the same map too, so walls stay where they
+    were relative to the path (exact for the mirror image, nearest-cell resampling for turn and scale).
     """
     n = len(windows["hist"])
     ang = np.radians(rng.uniform(-max_turn_deg, max_turn_deg, n))
@@ -101,7 +103,32 @@ def augment(windows: dict[str, np.ndarray], rng: np.random.Generator, mirror: fl
         mask &= keep[..., None]
         out["neigh"] = np.where(mask[..., None], apply(np.asarray(windows["neigh"], dtype=np.float64)), 0.0)
         out["neigh_mask"] = mask
+    if windows.get("map") is not None:
+        out["map"] = warp_maps(np.asarray(windows["map"]), A)
     return out
+
+
+def warp_maps(maps: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """Occupancy crops ``(N, C, C)`` of the frame in which positions are ``p``, seen in the frame in
+    which positions are ``A @ p`` (``A (N, 2, 2)``, invertible, e.g. a turn, mirror and scale).
+
+    Crop convention (``OccupancyGrid.crop_many``, used by the diffusion crowd): cell ``[r, c]`` covers
+    the agent-frame point ``((c + 0.5 - C/2) s, (r + 0.5 - C/2) s)`` (rows along +y, columns along +x,
+    cell size ``s``). Each new cell takes the value of the old cell holding the point ``A^-1 q``
+    (nearest cell; points beyond the crop take the nearest border cell). A mirror across the x axis
+    is exactly a flip of the rows; the identity gives the maps back unchanged.
+    """
+    maps = np.asarray(maps)
+    n, C = maps.shape[0], maps.shape[-1]
+    if n == 0:
+        return maps.copy()
+    u = np.arange(C) + 0.5 - 0.5 * C  # cell centres in cell units (the cell size cancels: A is linear)
+    qx, qy = np.meshgrid(u, u)  # qx varies along columns, qy along rows
+    q = np.stack([qx.ravel(), qy.ravel()], axis=0)  # (2, C*C)
+    src = np.einsum("nij,jm->nim", np.linalg.inv(np.asarray(A, dtype=np.float64)), q)  # (n, 2, C*C)
+    col = np.clip(np.floor(src[:, 0] + 0.5 * C + 1e-9), 0, C - 1).astype(np.int64)
+    row = np.clip(np.floor(src[:, 1] + 0.5 * C + 1e-9), 0, C - 1).astype(np.int64)
+    return maps[np.arange(n)[:, None], row, col].reshape(maps.shape)
 
 
 def windows_to_batch(windows: dict[str, np.ndarray], idx: np.ndarray | slice, device: str | torch.device = "cpu") -> dict[str, torch.Tensor]:
@@ -184,12 +211,19 @@ def train(
     val_windows: dict[str, np.ndarray] | None = None,
     log: Callable[[str], None] = print,
     extra_meta: dict[str, Any] | None = None,
+    extra_val: dict[str, dict[str, np.ndarray]] | None = None,
 ) -> dict[str, Any]:
-    """Train (or resume) into ``out``; returns the final summary (step, losses, wall time)."""
+    """Train (or resume) into ``out``; returns the final summary (step, losses, wall time).
+
+    ``extra_val`` (name -> windows) are validated with ``val_windows`` and logged as
+    ``val_loss_<name>``; only ``val_windows`` selects the best weights.
+    """
     out = Path(out)
     n = _check_windows(train_windows, "training")
     if val_windows is not None:
         _check_windows(val_windows, "validation")
+    for name, w in (extra_val or {}).items():
+        _check_windows(w, f"validation {name!r}")
     ckpt = out / "checkpoint"
     torch.manual_seed(cfg.seed)
     model = TrajectoryDiffusion(model_cfg).to(cfg.device)
@@ -259,6 +293,8 @@ def train(
             row: dict[str, Any] = {"step": step, **info, "wall_s": round(time.time() - t0, 2)}
             if val_windows is not None and (step % cfg.eval_every == 0 or step == cfg.steps):
                 row["val_loss"] = _validation_loss(ema, val_windows, cfg.device)
+                for name, w in (extra_val or {}).items():
+                    row[f"val_loss_{name}"] = _validation_loss(ema, w, cfg.device)
             if step % 50 == 0 or "val_loss" in row:
                 metrics_file.write(json.dumps(row) + "\n")
                 metrics_file.flush()
@@ -272,7 +308,8 @@ def train(
                              {"format": FORMAT, "version": VERSION, "model_config": model_cfg.to_dict(), "step": step,
                               "val_loss": best}, ckpt, "best.pt", "best.json")
             if "val_loss" in row:
-                log(f"step {step}: loss {info['loss']:.4f}, val {row['val_loss']:.4f}, {time.time() - t0:.0f} s")
+                extra = "".join(f", val {name} {row[f'val_loss_{name}']:.4f}" for name in (extra_val or {}))
+                log(f"step {step}: loss {info['loss']:.4f}, val {row['val_loss']:.4f}{extra}, {time.time() - t0:.0f} s")
             if step % cfg.ckpt_every == 0:
                 save()
             if cfg.time_limit_s is not None and time.time() - t0 > cfg.time_limit_s:
