@@ -153,3 +153,14 @@ def test_a_goal_conditioned_model_reaches_its_goal_and_forecasts_without_one():
     torch.testing.assert_close(m.sample(off, 1, generator=torch.Generator().manual_seed(3))[:, 0, -1], free)
     with pytest.raises(ValueError, match="goal_drop"):
         DiffusionConfig(goal=True, goal_drop=1.5)
+
+
+def test_path_cost_is_zero_on_the_path_and_grows_off_it():
+    from navzoo.agents.diffusion.guidance import path_cost
+
+    ref = torch.stack([torch.arange(1, 13).float() * 0.5, torch.zeros(12)], -1)[None].repeat(2, 1, 1)  # (2, 12, 2)
+    cost = path_cost(ref, weight=2.0, valid=torch.tensor([True, False]))
+    index = torch.tensor([0, 0, 1])
+    pos = torch.stack([ref[0], ref[0] + torch.tensor([0.0, 1.0]), ref[0] + 5.0])
+    c = cost(pos, index)
+    torch.testing.assert_close(c, torch.tensor([0.0, 2.0, 0.0]))  # on it; 1 m off at every step; not valid

@@ -9,7 +9,8 @@ Every ``replan_s`` seconds (2 s) all pedestrians of a world are planned in one b
 2. the occupancy crop of the scene around the person (8 m, 32 cells, the same frame) conditions the
    model, and the scene's distance field on the same crop feeds the wall guidance;
 3. ``n_samples`` futures (12 steps = 4.8 s) are drawn by DDIM (a goal-conditioned model, ``cfg.goal``,
-   gets that waypoint as its goal) with "clean" guidance: the end point
+   gets that waypoint as its goal) with "clean" guidance: every step is pulled toward the A* path
+   point ``v_pref x t`` ahead (``path_weight``), the end point
    is pulled to the point of the person's A* path that lies ``v_pref x 4.8 s`` ahead (the sparse
    global waypoint), and samples are pushed off other people's current plans and off walls;
 4. of each person's samples the one of lowest guidance cost is kept, in world coordinates.
@@ -30,7 +31,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
-from navzoo.agents.diffusion.guidance import agent_collision_cost, combine, map_collision_cost, target_cost
+from navzoo.agents.diffusion.guidance import (
+    agent_collision_cost,
+    combine,
+    map_collision_cost,
+    path_cost,
+    target_cost,
+)
 from navzoo.agents.diffusion.model import TrajectoryDiffusion
 from navzoo.forecast import data as fdata
 
@@ -95,6 +102,18 @@ def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance:
     return _ahead_on_path(rest[1:], rest[0], distance, extend)
 
 
+def _clip_to_free(env: NavEnv, start: np.ndarray, end: np.ndarray, clearance: float, step: float = 0.1) -> np.ndarray:
+    """(B, 2) the last point of each segment ``start -> end`` before the first point closer than
+    ``clearance`` to an obstacle (``start`` itself when that is already too close)."""
+    n = max(1, int(np.ceil(np.max(np.linalg.norm(end - start, axis=1), initial=0.0) / step)))
+    f = np.linspace(0.0, 1.0, n + 1)
+    pts = start[:, None, :] + f[None, :, None] * (end - start)[:, None, :]  # (B, n+1, 2)
+    free = env.grid.distance_at(pts) >= clearance
+    free[:, 0] = True
+    k = np.where(free.all(axis=1), n, np.argmin(free, axis=1) - 1)  # last free sample before the first blocked
+    return pts[np.arange(len(start)), k]
+
+
 class DiffusionCrowd:
     """Batched diffusion planner of all pedestrians of one env (see the module doc).
 
@@ -105,6 +124,9 @@ class DiffusionCrowd:
         replan_s: seconds between plans.
         guidance_scale: step size of the clean guidance.
         target_weight, agent_weight, map_weight: weights of the guidance costs.
+        path_weight: weight of the A* path guidance (every plan step near the path point
+            ``v_pref x t`` ahead, so plans go around walls at the person's pace; 0 = end point only).
+            20 by ``scripts/crowd_closed_loop.py --path-weight 0,5,10,20`` (docs/crowd.md).
         k_neighbors, neighbor_radius: neighbours given to the model.
         seed: seed of the sampling noise (with the env's step count, so replays are exact).
         device: torch device of the model.
@@ -113,7 +135,8 @@ class DiffusionCrowd:
     def __init__(self, model: TrajectoryDiffusion | str | Path | None = None, n_samples: int = 4,
                  replan_s: float = 2.0, guidance_scale: float = 0.05, target_weight: float = 1.0,
                  agent_weight: float = 10.0, map_weight: float = 10.0, k_neighbors: int = 16,
-                 neighbor_radius: float = 10.0, seed: int = 0, device: str = "cpu") -> None:
+                 neighbor_radius: float = 10.0, seed: int = 0, device: str = "cpu",
+                 path_weight: float = 20.0) -> None:
         if model is None or isinstance(model, (str, Path)):
             from navzoo.agents.diffusion.trainer import load_model
 
@@ -137,6 +160,7 @@ class DiffusionCrowd:
         self.radius = float(neighbor_radius)
         self.seed = int(seed)
         self.device = device
+        self.path_weight = float(path_weight)
         self.n = 0
 
     # ------------------------------------------------------------------ state
@@ -217,6 +241,8 @@ class DiffusionCrowd:
         extend = env.config.human_at_goal != "stop"
         target_w = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i],
                                                  env.v_pref[i] * horizon_s, extend) for i in people])
+        if extend:  # a target carried past the goal stops where free space ends (walls beyond the goal)
+            target_w = _clip_to_free(env, env.goal[people], target_w, float(env.config.human_radius) + 0.1)
         target = fdata.to_local(target_w[:, None, :], local)[:, 0]
         if self.cfg.goal:  # a goal-conditioned model gets the waypoint as its goal (guidance still pulls)
             batch["goal"] = torch.as_tensor(target, dtype=torch.float32)
@@ -224,6 +250,13 @@ class DiffusionCrowd:
         t_w, a_w, m_w = self.weights
         costs = [target_cost(torch.as_tensor(target, dtype=torch.float32), t_w,
                              valid=torch.as_tensor(~standing))]
+        if self.path_weight > 0:  # every step near the A* path at the person's pace (around walls, not through)
+            along = np.array([[_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i],
+                                                   env.v_pref[i] * MODEL_DT * k) for k in range(1, H + 1)]
+                              for i in people])  # (B, H, 2) world, held at the goal
+            ref = fdata.to_local(along, local)
+            costs.append(path_cost(torch.as_tensor(ref, dtype=torch.float32), self.path_weight,
+                                   valid=torch.as_tensor(~standing)))
         others_w = self._others_future(env, people)
         if others_w is not None:
             o_pos, o_mask = others_w

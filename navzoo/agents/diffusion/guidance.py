@@ -16,7 +16,7 @@ from torch.nn import functional as F
 
 Cost = Callable[[Tensor, Tensor], Tensor]
 
-__all__ = ["Cost", "agent_collision_cost", "combine", "map_collision_cost", "target_cost"]
+__all__ = ["Cost", "agent_collision_cost", "combine", "map_collision_cost", "path_cost", "target_cost"]
 
 
 def target_cost(target: Tensor, weight: float = 1.0, step: int = -1, valid: Tensor | None = None) -> Cost:
@@ -25,6 +25,20 @@ def target_cost(target: Tensor, weight: float = 1.0, step: int = -1, valid: Tens
 
     def cost(pos: Tensor, index: Tensor) -> Tensor:
         d2 = ((pos[:, step] - target[index]) ** 2).sum(-1)
+        if valid is not None:
+            d2 = d2 * valid[index].float()
+        return weight * d2
+
+    return cost
+
+
+def path_cost(points: Tensor, weight: float = 1.0, valid: Tensor | None = None) -> Cost:
+    """Mean squared distance (m²) of every step's position to the matching point of a reference path
+    ``points (B, H, 2)`` (agent frame): keeps the whole plan near the A* path (which goes around
+    walls) instead of only its end point; people with ``valid`` False (B,) get no pull."""
+
+    def cost(pos: Tensor, index: Tensor) -> Tensor:
+        d2 = ((pos - points[index]) ** 2).sum(-1).mean(-1)
         if valid is not None:
             d2 = d2 * valid[index].float()
         return weight * d2
