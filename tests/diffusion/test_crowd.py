@@ -94,3 +94,19 @@ def test_crowd_model_name_is_validated():
         NavEnv(scene="lobby", crowd_model="trace")
     with pytest.raises(ValueError, match="diffusion_samples"):
         NavEnv(scene="lobby", crowd_model="diffusion", diffusion_samples=0)
+
+
+def test_amp_target_paths_start_at_the_bodies_and_ramp_up_from_their_speed(model_dir):
+    from navzoo.agents.diffusion.crowd import ACCEL_LIMIT, AMP_SPEED_FACTOR
+
+    env = NavEnv(scene="lobby", n_robots=0, n_humans=3, crowd_model="diffusion", diffusion_model=str(model_dir),
+                 human_model="amp", dt=1 / 30, time_limit=10.0)
+    env.reset(seed=0)  # bodies at rest; the model's plans start at walking pace (walking-in histories)
+    paths = env.diffusion.plan_positions(env, 1 / 30, 60)
+    np.testing.assert_allclose(paths[:, 0], env.pos, atol=0.05)  # starts at the bodies
+    pace = np.linalg.norm(np.diff(paths, axis=1), axis=2) * 30
+    v0 = np.linalg.norm(env.vel, axis=1)
+    t = np.arange(1, 61) / 30
+    assert (pace <= AMP_SPEED_FACTOR * env.v_pref[:, None] + 1e-6).all()
+    assert (pace <= v0[:, None] + ACCEL_LIMIT * t[None] + 1e-6).all()
+    env.close()

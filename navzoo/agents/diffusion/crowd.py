@@ -48,6 +48,9 @@ __all__ = ["DiffusionCrowd", "default_model_dir"]
 
 MODEL_DT = 0.4  # s per model step (ETH/UCY protocol)
 MAP_EXTENT = 8.0  # m, side of the occupancy / distance crops
+ACCEL_LIMIT = 1.0  # m/s², largest rise of pace along a physics body's target path (plan_positions)
+AMP_SPEED_FACTOR = 1.0  # x v_pref: the fastest pace along a physics body's target path
+BODY_MARGIN = 0.0  # m added to each physics body's radius in the people guidance (0.1 measured no better)
 
 
 def default_model_dir() -> Path:
@@ -257,12 +260,14 @@ class DiffusionCrowd:
             ref = fdata.to_local(along, local)
             costs.append(path_cost(torch.as_tensor(ref, dtype=torch.float32), self.path_weight,
                                    valid=torch.as_tensor(~standing)))
+        # Articulated bodies swing beyond their discs: plan them with room to spare (as amp_humans does).
+        margin = BODY_MARGIN if getattr(env, "amp", None) is not None else 0.0
         others_w = self._others_future(env, people)
         if others_w is not None:
             o_pos, o_mask = others_w
             o_local = fdata.to_local(o_pos.reshape(B, -1, 2), local).reshape(o_pos.shape)
             costs.append(agent_collision_cost(torch.as_tensor(o_local, dtype=torch.float32), torch.as_tensor(o_mask),
-                                              radius=2 * float(env.config.human_radius), weight=a_w))
+                                              radius=2 * (float(env.config.human_radius) + margin), weight=a_w))
         n_cells = 32
         offs = (np.arange(n_cells) + 0.5 - n_cells / 2) * (MAP_EXTENT / n_cells)
         lx, ly = np.meshgrid(offs, offs)
@@ -300,8 +305,13 @@ class DiffusionCrowd:
             return None
         steps = (np.arange(1, H + 1) * MODEL_DT)[None, :, None]
         fut = env.pos[agents][:, None, :] + steps * env.vel[agents][:, None, :]
-        if self.plan is not None and self.plan.shape[0] == env.n_humans:
-            people_now = agents >= R
+        people_now = agents >= R
+        amp = getattr(env, "amp", None)
+        if amp is not None and amp.n == env.n_humans:  # physics bodies walk their target paths, not the raw plans
+            k = (amp.t - amp.plan_t)[:, None] + np.round(steps[0, :, 0] * 30.0).astype(int)[None, :]
+            paths = np.take_along_axis(amp.paths, np.minimum(k, amp.path_len - 1)[..., None], axis=1)  # (H, H', 2)
+            fut[people_now] = paths[agents[people_now] - R]
+        elif self.plan is not None and self.plan.shape[0] == env.n_humans:
             fut[people_now] = self._plans_at(env.sim_time - self.plan_time + steps[0, :, 0])[agents[people_now] - R]
         B = people.size
         others = np.repeat(fut[None], B, axis=0)
@@ -342,7 +352,32 @@ class DiffusionCrowd:
         return self.preferred_velocities(env, lookahead=env.config.dt)
 
     def plan_positions(self, env: NavEnv, dt: float, steps: int) -> np.ndarray:
-        """(H, steps + 1, 2) positions every ``dt`` from now along fresh plans (AMP target paths)."""
+        """(H, steps + 1, 2) target paths for physics bodies (AMP), every ``dt`` from now.
+
+        Each body's target starts where the body is: at the point of its fresh plan nearest to it
+        (the plan starts at the last history point, up to 0.4 s old), and goes along the plan's path
+        at a pace that starts at the body's speed and rises by at most :data:`ACCEL_LIMIT` to the
+        plan's mean pace, capped at ``AMP_SPEED_FACTOR x v_pref``. A body cannot follow the sampled
+        timing itself: plans can start at walking pace from rest, and their pace jumps between plans.
+        """
         self.plan_now(env)
+        R = env.n_robots
         t = np.arange(steps + 1) * dt
-        return self._plans_at(t)
+        plan = self.plan  # (H, K, 2)
+        seg = np.linalg.norm(np.diff(plan, axis=1), axis=2)  # (H, K-1)
+        cum = np.concatenate([np.zeros((len(plan), 1)), np.cumsum(seg, axis=1)], axis=1)
+        pace = np.minimum(cum[:, -1] / (MODEL_DT * seg.shape[1]), AMP_SPEED_FACTOR * env.v_pref[R:])
+        v0 = np.minimum(np.linalg.norm(env.vel[R:], axis=1), pace)
+        out = np.empty((len(plan), len(t), 2))
+        for j in range(len(plan)):
+            a, b = plan[j, :-1], plan[j, 1:]
+            ab = b - a
+            f = np.clip(np.sum((env.pos[R + j] - a) * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), 1e-12), 0, 1)
+            d = np.linalg.norm(a + f[:, None] * ab - env.pos[R + j], axis=1)
+            k = int(np.argmin(d))
+            s0 = cum[j, k] + f[k] * seg[j, k]
+            v = np.minimum(pace[j], v0[j] + ACCEL_LIMIT * t)
+            s = s0 + np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)])
+            out[j, :, 0] = np.interp(s, cum[j], plan[j, :, 0])
+            out[j, :, 1] = np.interp(s, cum[j], plan[j, :, 1])
+        return out
