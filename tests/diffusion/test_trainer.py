@@ -80,3 +80,15 @@ def test_augment_is_a_similarity_of_each_window_and_drops_neighbours():
     noisy = augment(w, np.random.default_rng(0))
     np.testing.assert_allclose(noisy["hist"][:, -1], 0.0, atol=1e-12)
     assert np.abs(noisy["hist"][:, :-1] - a["hist"][:, :-1]).max() > 0.005
+
+
+def test_validation_rows_span_every_scene_of_a_large_validation_set():
+    from navzoo.agents.diffusion.trainer import validation_rows
+
+    np.testing.assert_array_equal(validation_rows(10, 2048), np.arange(10))
+    rows = validation_rows(10_000, 2048)
+    assert len(rows) == 2048 and rows[0] == 0 and rows[-1] == 9_999
+    assert np.all(np.diff(rows) > 0)
+    # windows grouped by scene (5 scenes of 2,000): every scene is validated, about equally
+    counts = np.bincount(rows // 2000, minlength=5)
+    assert counts.min() >= 400, counts

@@ -189,10 +189,18 @@ def _load_checked(folder: Path, weights_name: str, meta_name: str) -> tuple[dict
 
 
 @torch.no_grad()
+def validation_rows(total: int, n: int = 2048) -> np.ndarray:
+    """At most ``n`` window indices spread evenly over all ``total`` windows (windows come grouped by
+    scene, so the first ``n`` would leave the last scenes out of the validation loss)."""
+    if total <= n:
+        return np.arange(total)
+    return np.unique(np.linspace(0, total - 1, n).round().astype(np.int64))
+
+
 def _validation_loss(model: TrajectoryDiffusion, windows: dict[str, np.ndarray], device: str, n: int = 2048) -> float:
     model.eval()
     g = torch.Generator(device="cpu").manual_seed(1234)
-    rows = np.arange(min(n, len(windows["hist"])))
+    rows = validation_rows(len(windows["hist"]), n)
     total, count = 0.0, 0
     for i in range(0, len(rows), 512):
         b = windows_to_batch(windows, rows[i:i + 512], device)
