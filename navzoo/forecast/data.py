@@ -273,6 +273,54 @@ def _empty_batch(obs_len: int, pred_len: int, k: int) -> dict[str, Any]:
     }
 
 
+def window_arrays(
+    grid: np.ndarray, piece: np.ndarray, t0: np.ndarray, p: np.ndarray, obs_len: int, pred_len: int, k: int,
+    radius: float,
+) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
+    """The trajectory arrays of windows (``obs_len + pred_len`` frames) starting at frames ``t0`` for
+    persons ``p`` (the caller checks that each person is there for the whole window).
+
+    ``grid`` (F, P, 2) holds every person's position per frame (NaN where absent) and ``piece``
+    (F, P) a track-piece id: a neighbour counts at a step where it is present and on the same piece
+    as at the last observed frame. Neighbours are the ``k`` nearest present within ``radius`` at
+    the last observed frame, nearest first.
+
+    Returns the keys ``hist``, ``fut``, ``neigh``, ``neigh_mask``, ``neigh_fut``, ``neigh_fut_mask``,
+    and the neighbours' person indices (N, k), their ``ok`` flags (N, k) and the last observed frames (N,).
+    """
+    n, n_p = t0.size, grid.shape[1]
+    length = obs_len + pred_len
+    steps = t0[:, None] + np.arange(length)  # (N, L)
+    track = grid[steps, p[:, None]]  # (N, L, 2)
+    t_last = t0 + obs_len - 1
+    dist = np.linalg.norm(grid[t_last] - track[:, obs_len - 1][:, None, :], axis=2)  # (N, P)
+    dist = np.where(np.isnan(dist), np.inf, dist)
+    dist[np.arange(n), p] = np.inf
+    dist[dist > radius] = np.inf
+    k_eff = min(k, n_p)
+    nearest = np.argsort(dist, axis=1, kind="stable")[:, :k_eff]  # (N, k_eff)
+    ok = np.isfinite(np.take_along_axis(dist, nearest, axis=1))
+    neigh_track = grid[steps[:, None, :], nearest[:, :, None]]  # (N, k_eff, L, 2)
+    same_piece = piece[steps[:, None, :], nearest[:, :, None]] == piece[t_last[:, None], nearest][..., None]
+    valid = ~np.isnan(neigh_track[..., 0]) & same_piece & ok[..., None]
+    neigh_track = np.where(valid[..., None], neigh_track, 0.0)
+    pad = k - k_eff
+    if pad:
+        neigh_track = np.concatenate([neigh_track, np.zeros((n, pad, length, 2))], axis=1)
+        valid = np.concatenate([valid, np.zeros((n, pad, length), bool)], axis=1)
+        ok = np.concatenate([ok, np.zeros((n, pad), bool)], axis=1)
+        nearest = np.concatenate([nearest, np.zeros((n, pad), np.int64)], axis=1)
+    core = {
+        "hist": track[:, :obs_len].copy(),
+        "fut": track[:, obs_len:].copy(),
+        "neigh": neigh_track[:, :, :obs_len].copy(),
+        "neigh_mask": valid[:, :, :obs_len].copy(),
+        "neigh_fut": neigh_track[:, :, obs_len:].copy(),
+        "neigh_fut_mask": valid[:, :, obs_len:].copy(),
+    }
+    return core, nearest, ok, t_last
+
+
 def build_windows(
     tracks: Tracks,
     obs_len: int = 8,
@@ -319,42 +367,11 @@ def build_windows(
     n = t0.size
     if n == 0:
         return _empty_batch(obs_len, pred_len, k_neighbors)
-    steps = t0[:, None] + np.arange(length)  # (N, L)
-    track = grid[steps, p[:, None]]  # (N, L, 2)
-    t_last = t0 + obs_len - 1
-
-    # Neighbours: present at the last observed frame, within radius, K nearest.
-    k = k_neighbors
-    here = grid[t_last]  # (N, P, 2)
-    dist = np.linalg.norm(here - track[:, obs_len - 1][:, None, :], axis=2)
-    dist = np.where(np.isnan(dist), np.inf, dist)
-    dist[np.arange(n), p] = np.inf
-    dist[dist > radius] = np.inf
-    k_eff = min(k, n_p)
-    if k_eff:
-        nearest = np.argsort(dist, axis=1, kind="stable")[:, :k_eff]  # (N, k_eff)
-        ok = np.isfinite(np.take_along_axis(dist, nearest, axis=1))
-    else:
-        nearest = np.zeros((n, 0), np.int64)
-        ok = np.zeros((n, 0), bool)
-    neigh_track = grid[steps[:, None, :], nearest[:, :, None]]  # (N, k_eff, L, 2)
-    neigh_track[~ok] = np.nan
-    valid = ~np.isnan(neigh_track[..., 0])
-    neigh_track = np.where(valid[..., None], neigh_track, 0.0)
-    pad = k - k_eff
-    if pad:
-        neigh_track = np.concatenate([neigh_track, np.zeros((n, pad, length, 2))], axis=1)
-        valid = np.concatenate([valid, np.zeros((n, pad, length), bool)], axis=1)
-        ok = np.concatenate([ok, np.zeros((n, pad), bool)], axis=1)
-        nearest = np.concatenate([nearest, np.zeros((n, pad), np.int64)], axis=1)
+    core, nearest, ok, t_last = window_arrays(grid, np.zeros(grid.shape[:2], np.int64), t0, p, obs_len,
+                                              pred_len, k_neighbors, radius)
     frame0 = tracks.frame.min()
     return {
-        "hist": track[:, :obs_len].copy(),
-        "fut": track[:, obs_len:].copy(),
-        "neigh": neigh_track[:, :, :obs_len].copy(),
-        "neigh_mask": valid[:, :, :obs_len].copy(),
-        "neigh_fut": neigh_track[:, :, obs_len:].copy(),
-        "neigh_fut_mask": valid[:, :, obs_len:].copy(),
+        **core,
         "neigh_ped": np.where(ok, peds[nearest], -1).astype(np.int64),
         "ped": peds[p].astype(np.int64),
         "frame": (frame0 + t_last * tracks.frame_step).astype(np.int64),

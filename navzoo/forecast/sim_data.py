@@ -224,37 +224,9 @@ def windows_from_recording(
     n = t0.size
     if n == 0:
         return _empty(obs_len, pred_len, k, map_cells)
-    steps = t0[:, None] + np.arange(L)
-    track = pos[steps, p[:, None]]  # (N, L, 2)
-    t_last = t0 + obs_len - 1
-
-    here = pos[t_last]  # (N, P, 2)
-    dist = np.linalg.norm(here - track[:, obs_len - 1][:, None, :], axis=2)
-    dist[np.arange(n), p] = np.inf
-    dist[dist > radius] = np.inf
-    k_eff = min(k, n_p)
-    if k_eff:
-        nearest = np.argsort(dist, axis=1, kind="stable")[:, :k_eff]
-        ok = np.isfinite(np.take_along_axis(dist, nearest, axis=1))
-    else:
-        nearest = np.zeros((n, 0), np.int64)
-        ok = np.zeros((n, 0), bool)
-    neigh_track = pos[steps[:, None, :], nearest[:, :, None]]  # (N, k_eff, L, 2)
-    valid = (seg[steps[:, None, :], nearest[:, :, None]] == seg[t_last[:, None], nearest][..., None]) & ok[..., None]
-    neigh_track = np.where(valid[..., None], neigh_track, 0.0)
-    pad = k - k_eff
-    if pad:
-        neigh_track = np.concatenate([neigh_track, np.zeros((n, pad, L, 2))], axis=1)
-        valid = np.concatenate([valid, np.zeros((n, pad, L), bool)], axis=1)
-        ok = np.concatenate([ok, np.zeros((n, pad), bool)], axis=1)
-        nearest = np.concatenate([nearest, np.zeros((n, pad), np.int64)], axis=1)
+    core, nearest, ok, t_last = fdata.window_arrays(pos, seg, t0, p, obs_len, pred_len, k, radius)
     batch = {
-        "hist": track[:, :obs_len].copy(),
-        "fut": track[:, obs_len:].copy(),
-        "neigh": neigh_track[:, :, :obs_len].copy(),
-        "neigh_mask": valid[:, :, :obs_len].copy(),
-        "neigh_fut": neigh_track[:, :, obs_len:].copy(),
-        "neigh_fut_mask": valid[:, :, obs_len:].copy(),
+        **core,
         "neigh_ped": np.where(ok, nearest, -1).astype(np.int64),
         "ped": p.astype(np.int64),
         "frame": t_last.astype(np.int64),
