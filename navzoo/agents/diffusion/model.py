@@ -210,29 +210,31 @@ class _Conditioner(nn.Module):
         pooled = torch.where(has[:, None], pooled, self.no_neigh.expand(B, -1))
         parts = [ego, pooled]
         if cfg.map_cells:
-            occ = batch.get("map")
-            if occ is not None:
-                m = self.map(occ.float().unsqueeze(1))
-                has_map = batch.get("has_map", torch.ones(B, dtype=torch.bool, device=hist.device)).bool()
-            else:
-                m = torch.zeros(B, 64, device=hist.device)
-                has_map = torch.zeros(B, dtype=torch.bool, device=hist.device)
-            if drop is not None:
-                has_map = has_map & ~drop
-            parts.append(torch.where(has_map[:, None], m, self.no_map.expand(B, -1)))
-        if cfg.goal:
-            goal = batch.get("goal")
-            if goal is not None:
-                g = self.goal(goal.float() / (s * cfg.horizon * 0.4))  # ~1 for a walk at vel_scale
-                has_goal = batch.get("has_goal", torch.ones(B, dtype=torch.bool, device=hist.device)).bool()
-            else:
-                g = torch.zeros(B, 64, device=hist.device)
-                has_goal = torch.zeros(B, dtype=torch.bool, device=hist.device)
-            if goal_drop is not None:
-                has_goal = has_goal & ~goal_drop
-            parts.append(torch.where(has_goal[:, None], g, self.no_goal.expand(B, -1)))
+            parts.append(self._optional(batch, "map", lambda m: self.map(m.unsqueeze(1)), self.no_map, drop))
+        if cfg.goal:  # scaled so that a walk at vel_scale over the horizon is about 1
+            parts.append(self._optional(batch, "goal", lambda g: self.goal(g / (s * cfg.horizon * 0.4)), self.no_goal,
+                                        goal_drop))
         parts.append(dt.reshape(B, 1).float())
         return self.out(torch.cat(parts, dim=-1))
+
+
+    @staticmethod
+    def _optional(batch: dict[str, Tensor], key: str, encode: Callable[[Tensor], Tensor], absent: Tensor,
+                  drop: Tensor | None) -> Tensor:
+        """Features of an optional input ``batch[key]`` (with ``batch["has_" + key]``, default all
+        present); the learned ``absent`` vector where it is missing, withheld or dropped."""
+        hist = batch["hist"]
+        B = hist.shape[0]
+        value = batch.get(key)
+        if value is not None:
+            feats = encode(value.float())
+            has = batch.get(f"has_{key}", torch.ones(B, dtype=torch.bool, device=hist.device)).bool()
+        else:
+            feats = torch.zeros(B, absent.shape[0], device=hist.device)
+            has = torch.zeros(B, dtype=torch.bool, device=hist.device)
+        if drop is not None:
+            has = has & ~drop
+        return torch.where(has[:, None], feats, absent.expand(B, -1))
 
 
 def _velocities(pos: Tensor, dt: Tensor) -> Tensor:
