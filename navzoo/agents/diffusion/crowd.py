@@ -64,27 +64,44 @@ def default_model_dir() -> Path:
     return Path(env_dir) if env_dir else Path(list(policies.__path__)[0]) / "trajectory_diffusion"
 
 
-def _ahead_on_path(path: np.ndarray, pos: np.ndarray, distance: float, extend: bool = False) -> np.ndarray:
-    """The point ``distance`` metres along ``[pos] + path``; if the path is shorter, its end, or with
-    ``extend`` the point that far along the line through the path's last segment, beyond its end."""
+def _ahead_on_path(path: np.ndarray, pos: np.ndarray, distance: float | np.ndarray,
+                   extend: bool = False) -> np.ndarray:
+    """The point ``distance`` metres along ``[pos] + path`` ((2,), or (D, 2) for D distances); if the
+    path is shorter, its end, or with ``extend`` the point that far along the line through the
+    path's last segment, beyond its end."""
     pts = np.vstack([pos[None], path])
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
     cum = np.concatenate([[0.0], np.cumsum(seg)])
-    if distance >= cum[-1]:
-        nz = np.flatnonzero(seg > 1e-9)
-        if not extend or nz.size == 0:
-            return pts[-1].copy()
+    d = np.atleast_1d(np.asarray(distance, dtype=float))
+    out = np.repeat(pts[-1][None], d.size, axis=0)
+    inside = d < cum[-1]
+    if inside.any():
+        k = np.searchsorted(cum, d[inside], side="right") - 1
+        f = (d[inside] - cum[k]) / np.maximum(seg[k], 1e-9)
+        out[inside] = pts[k] + f[:, None] * (pts[k + 1] - pts[k])
+    nz = np.flatnonzero(seg > 1e-9)
+    if extend and nz.size:
         k = nz[-1]
-        return pts[-1] + (distance - cum[-1]) * (pts[k + 1] - pts[k]) / seg[k]
-    k = int(np.searchsorted(cum, distance, side="right") - 1)
-    f = (distance - cum[k]) / max(seg[k], 1e-9)
-    return pts[k] + f * (pts[k + 1] - pts[k])
+        out[~inside] += (d[~inside] - cum[-1])[:, None] * (pts[k + 1] - pts[k]) / seg[k]
+    return out[0] if np.ndim(distance) == 0 else out
 
 
-def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance: float,
+def _nearest_on_polyline(pts: np.ndarray, pos: np.ndarray) -> tuple[int, float, np.ndarray]:
+    """Segment index, fraction along it and the point of the polyline ``pts`` nearest to ``pos``
+    (the farthest along on ties)."""
+    a, ab = pts[:-1], np.diff(pts, axis=0)
+    f = np.clip(np.sum((pos - a) * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), 1e-12), 0.0, 1.0)
+    proj = a + f[:, None] * ab
+    d = np.linalg.norm(proj - pos, axis=1)
+    k = int(np.flatnonzero(d <= d.min() + 1e-9)[-1])
+    return k, float(f[k]), proj[k]
+
+
+def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance: float | np.ndarray,
                         extend: bool = False) -> np.ndarray:
-    """The point ``distance`` metres ahead along the A* ``path`` from the point of the path nearest
-    to ``pos``, searched from the segment that ends at waypoint ``start`` (the env's current one) on.
+    """The point ``distance`` metres ahead (or the points, for an array of distances) along the A*
+    ``path`` from the point of the path nearest to ``pos``, searched from the segment that ends at
+    waypoint ``start`` (the env's current one) on.
 
     Plans stray from the path more than the rule-based crowds, so a person often passes a waypoint
     outside the env's waypoint tolerance and its waypoint index stays behind: measuring from the
@@ -92,17 +109,10 @@ def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance:
     """
     pts = np.vstack([pos[None], path]) if len(path) == 1 else path
     first = max(0, start - 1) if len(path) > 1 else 0
-    a, b = pts[first:-1], pts[first + 1:]
-    if len(a) == 0:
+    if len(pts) - first < 2:
         return _ahead_on_path(path[start:], pos, distance, extend)
-    ab = b - a
-    L2 = np.maximum(np.sum(ab * ab, axis=1), 1e-12)
-    f = np.clip(np.sum((pos - a) * ab, axis=1) / L2, 0.0, 1.0)
-    proj = a + f[:, None] * ab
-    d = np.linalg.norm(proj - pos, axis=1)
-    k = int(np.flatnonzero(d <= d.min() + 1e-9)[-1])  # the nearest; the farthest along on ties
-    rest = np.vstack([proj[k][None], pts[first + k + 1:]])
-    return _ahead_on_path(rest[1:], rest[0], distance, extend)
+    k, _, proj = _nearest_on_polyline(pts[first:], pos)
+    return _ahead_on_path(pts[first + k + 1:], proj, distance, extend)
 
 
 def _clip_to_free(env: NavEnv, start: np.ndarray, end: np.ndarray, clearance: float, step: float = 0.1) -> np.ndarray:
@@ -254,8 +264,8 @@ class DiffusionCrowd:
         costs = [target_cost(torch.as_tensor(target, dtype=torch.float32), t_w,
                              valid=torch.as_tensor(~standing))]
         if self.path_weight > 0:  # every step near the A* path at the person's pace (around walls, not through)
-            along = np.array([[_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i],
-                                                   env.v_pref[i] * MODEL_DT * k) for k in range(1, H + 1)]
+            steps = np.arange(1, H + 1) * MODEL_DT
+            along = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * steps)
                               for i in people])  # (B, H, 2) world, held at the goal
             ref = fdata.to_local(along, local)
             costs.append(path_cost(torch.as_tensor(ref, dtype=torch.float32), self.path_weight,
@@ -370,12 +380,8 @@ class DiffusionCrowd:
         v0 = np.minimum(np.linalg.norm(env.vel[R:], axis=1), pace)
         out = np.empty((len(plan), len(t), 2))
         for j in range(len(plan)):
-            a, b = plan[j, :-1], plan[j, 1:]
-            ab = b - a
-            f = np.clip(np.sum((env.pos[R + j] - a) * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), 1e-12), 0, 1)
-            d = np.linalg.norm(a + f[:, None] * ab - env.pos[R + j], axis=1)
-            k = int(np.argmin(d))
-            s0 = cum[j, k] + f[k] * seg[j, k]
+            k, f, _ = _nearest_on_polyline(plan[j], env.pos[R + j])
+            s0 = cum[j, k] + f * seg[j, k]
             v = np.minimum(pace[j], v0[j] + ACCEL_LIMIT * t)
             s = s0 + np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)])
             out[j, :, 0] = np.interp(s, cum[j], plan[j, :, 0])
