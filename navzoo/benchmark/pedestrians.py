@@ -112,10 +112,7 @@ def target_points(env) -> np.ndarray | None:
     """
     if env.amp is not None:
         return env.amp.target_now()
-    crowd = env.diffusion
-    if crowd is not None and crowd.plan is not None and crowd.plan.shape[0] == env.n_humans:
-        return crowd._plans_at(env.sim_time - crowd.plan_time)[:, 0]
-    return None
+    return env.diffusion.points_now(env) if env.diffusion is not None else None
 
 
 def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, policy_dir: str | None = None,

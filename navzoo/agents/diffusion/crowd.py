@@ -338,6 +338,12 @@ class DiffusionCrowd:
         return self.plan[:, k0] * (1.0 - w) + self.plan[:, k0 + 1] * w
 
     # ------------------------------------------------------------------ outputs
+    def points_now(self, env: NavEnv) -> np.ndarray | None:
+        """(H, 2) every pedestrian's current plan point (None before the first plan)."""
+        if self.plan is None or self.plan.shape[0] != env.n_humans:
+            return None
+        return self._plans_at(env.sim_time - self.plan_time)[:, 0]
+
     def maybe_plan(self, env: NavEnv, force: bool = False) -> None:
         """Plan when ``replan_s`` has passed since the last plan, or when someone got a new goal."""
         goals = int(env.goals_reached[env.n_robots:].sum())
