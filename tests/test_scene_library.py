@@ -115,6 +115,20 @@ def test_packaged_scene(name):
         assert len(set(scene.robot_spawn + scene.robot_goal)) >= 2  # tasks cross the scene
     _check_connected(scene)
     _check_tasks(scene)
+    _check_dense_crowd(scene)
+
+
+def _check_dense_crowd(scene: Scene, density: float = 0.3, cap: int = 40, seeds: int = 5) -> None:
+    """The benchmark's densest level (0.3 people per m² of crowd area, at most 40) fits in the scene."""
+    n = min(cap, int(round(density * round(scene.crowd_area(), 1))))
+    sampler = TaskSampler(scene, scene.occupancy(), RADIUS)
+    for seed in range(seeds):
+        rng = np.random.default_rng(seed)
+        r_starts, r_goals = sampler.sample(rng, 1, "robot", min_goal_dist=3.0)
+        h_starts, _ = sampler.sample(
+            rng, n, "human", min_goal_dist=3.0, existing_positions=r_starts, existing_goals=r_goals
+        )
+        assert len(h_starts) == n
 
 
 # ---------------------------------------------------------------------------------------------------------

@@ -94,7 +94,8 @@ class BenchmarkSpec:
         methods: robot policy names (:func:`navzoo.agents.baselines.make_policy`). A ``-holonomic`` or
             ``-diffdrive`` suffix also sets the robot's kinematics for that method.
         crowds: crowd models of the pedestrians (``sfm``, ``orca``, ``orca_rvo2``).
-        densities: people per m² of the scene's free space (``round(d * free_area)`` people).
+        densities: people per m² of the scene's crowd area (``round(d * scene.crowd_area())`` people: the free
+            space, or the circle/square of the CrowdNav protocols).
         humans: people per scene (counts), instead of ``densities``; neither = each scene's default.
         episodes: episodes per cell (method x scene x crowd x level).
         seed: base seed of every episode seed (:func:`episode_seed`).
@@ -318,9 +319,9 @@ class Cell:
     group: str
     crowd: str
     level: str  # "d0.15" (people per m²), "n10" (count) or "default" (the scene's own)
-    density: float  # people per m² of free space (nominal for density levels, n / free area otherwise)
+    density: float  # people per m² of crowd area (nominal for density levels, n / area otherwise)
     n_humans: int
-    free_area_m2: float
+    free_area_m2: float  # the area the density refers to (Scene.crowd_area)
 
 
 @dataclass(frozen=True)
@@ -384,7 +385,7 @@ def build_cells(spec: BenchmarkSpec) -> list[Cell]:
     cells = []
     for scene in spec.scenes:
         sc = get_scene(scene)
-        free = round(float(sc.free_area(0.0)), 1)
+        free = round(float(sc.crowd_area()), 1)
         levels: list[tuple[str, float, int]] = []
         if spec.densities is not None:
             for d in spec.densities:
@@ -1247,7 +1248,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--methods", default=None, help="comma-separated robot policies (orca, dwa, sfm, pure-pursuit, ...)")
     parser.add_argument("--crowd", default=None, help="comma-separated crowd models: sfm, orca, orca_rvo2 (default sfm)")
     level = parser.add_mutually_exclusive_group()
-    level.add_argument("--density", default=None, help="people per m² of free space, e.g. 0.05,0.15,0.3")
+    level.add_argument("--density", default=None, help="people per m² of free space (of the circle/square for the CrowdNav protocols), e.g. 0.05,0.15,0.3")
     level.add_argument("--humans", default=None, help="people per scene (counts), e.g. 5,10")
     parser.add_argument("--episodes", type=int, default=None, help="episodes per cell (default 20)")
     parser.add_argument("--seed", type=int, default=None, help="base seed (default 0)")

@@ -683,6 +683,20 @@ class Scene:
         grid = self.occupancy(resolution).inflate(radius)
         return float(np.count_nonzero(~grid.occ)) * resolution * resolution
 
+    def crowd_area(self) -> float:
+        """Area in m^2 that a crowd density (people per m^2) refers to.
+
+        The free space (:meth:`free_area`, radius 0) for region scenes. The CrowdNav protocols place
+        people on a circle or in a square regardless of the room around it, so there it is the protocol's
+        area: pi * radius^2 for ``circle_crossing``, width^2 for ``square_crossing``.
+        """
+        proto = self.protocol
+        if proto is not None and proto.type == "circle_crossing":
+            return math.pi * proto.radius**2
+        if proto is not None and proto.type == "square_crossing":
+            return proto.width**2
+        return self.free_area(0.0)
+
     def region_list(self, kind: str, role: str) -> tuple[str, ...]:
         """Region names for ``kind`` in ``{"robot", "human"}`` and ``role`` in ``{"spawn", "goal"}``."""
         if kind not in ("robot", "human") or role not in ("spawn", "goal"):
