@@ -295,13 +295,25 @@ def simulate_windows(
         if runs is not None:
             runs.append(info)
         if log is not None:
-            log(f"{crowd:4s} {scene:18s} {info['people']:3d} people: {n:6d} windows "
-                f"({info['goals_reached']} goals reached), {rec.wall_s:.1f} s")
+            log(_run_line(info))
         if n:
             out.append(w)
     if not out:
         return _empty(window_kwargs.get("obs_len", 8), window_kwargs.get("pred_len", 12), k, map_cells)
     return fdata.concat(out)
+
+
+def _simulate_one(scene: str, crowd: str, people: int | Mapping[str, int] | None, seconds: float, seed: int,
+                  map_cells: int, window_kwargs: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Windows and run description of one crowd in one scene (a worker's job in :func:`build_sim_dataset`)."""
+    runs: list[dict[str, Any]] = []
+    w = simulate_windows([scene], crowd, people, seconds, seed, map_cells, runs=runs, **window_kwargs)
+    return w, runs[0]
+
+
+def _run_line(info: Mapping[str, Any]) -> str:
+    return (f"{info['crowd']:4s} {info['scene']:18s} {info['people']:3d} people: {info['windows']:6d} windows "
+            f"({info['goals_reached']} goals reached), {info['wall_s']:.1f} s")
 
 
 def with_map(batch: Mapping[str, Any], map_cells: int) -> dict[str, Any]:
@@ -333,9 +345,14 @@ def build_sim_dataset(
     seed: int = 0,
     map_cells: int = 32,
     log: Callable[[str], None] | None = print,
+    workers: int = 1,
     **window_kwargs: Any,
 ) -> dict[str, Any]:
-    """Simulate every crowd in every scene (:func:`simulate_windows`) and write one ``.npz``; returns its description."""
+    """Simulate every crowd in every scene (:func:`simulate_windows`) and write one ``.npz``; returns its description.
+
+    ``workers`` > 1 runs the (crowd, scene) recordings in that many processes; the file is the same
+    for any number of workers (each run depends only on its scene, crowd, people, seconds and seed).
+    """
     if isinstance(crowds, str):
         crowds = [c for c in crowds.split(",") if c]
     crowds = list(crowds)
@@ -346,8 +363,23 @@ def build_sim_dataset(
     scenes = list(scenes)
     t0 = time.time()
     runs: list[dict[str, Any]] = []
-    batches = [simulate_windows(scenes, c, people, seconds, seed, map_cells, log=log, runs=runs, **window_kwargs)
-               for c in crowds]
+    jobs = [(scene, c) for c in crowds for scene in scenes]  # crowd-major: the order of the output
+    if workers <= 1:
+        results = [_simulate_one(scene, c, people, seconds, seed, map_cells, window_kwargs) for scene, c in jobs]
+    else:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=mp.get_context("spawn")) as pool:
+            futures = [pool.submit(_simulate_one, scene, c, people, seconds, seed, map_cells, window_kwargs)
+                       for scene, c in jobs]
+            results = [f.result() for f in futures]
+    batches = []
+    for w, run in results:
+        runs.append(run)
+        if log is not None:
+            log(_run_line(run))
+        batches.append(w)
     batch = fdata.concat([b for b in batches if fdata.batch_size(b)] or batches[:1])
     info = {"format": "navzoo-sim-windows", "version": 1, "scenes": scenes, "crowds": crowds,
             "people": people if people is None or isinstance(people, int) else dict(people),
@@ -392,10 +424,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--map-cells", type=int, default=32)
     parser.add_argument("--stride", type=int, default=1)
     parser.add_argument("--keep-goal-resets", action="store_true", help="keep windows spanning a goal reset")
+    parser.add_argument("--workers", type=int, default=1, help="processes for the (crowd, scene) runs")
     args = parser.parse_args(argv)
+    if args.workers < 1:
+        parser.error(f"--workers must be >= 1, got {args.workers}")
     info = build_sim_dataset(args.out, args.scenes, args.crowds, args.people, args.seconds, args.seed, args.map_cells,
                              log=lambda s: print(s, file=sys.stderr, flush=True), stride=args.stride,
-                             cut_at_goal=not args.keep_goal_resets)
+                             cut_at_goal=not args.keep_goal_resets, workers=args.workers)
     print(json.dumps({k: v for k, v in info.items() if k != "runs"}))
     return 0
 
