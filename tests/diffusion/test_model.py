@@ -164,3 +164,22 @@ def test_path_cost_is_zero_on_the_path_and_grows_off_it():
     pos = torch.stack([ref[0], ref[0] + torch.tensor([0.0, 1.0]), ref[0] + 5.0])
     c = cost(pos, index)
     torch.testing.assert_close(c, torch.tensor([0.0, 2.0, 0.0]))  # on it; 1 m off at every step; not valid
+
+
+def test_forecaster_passes_the_map_to_map_aware_models():
+    from navzoo.agents.diffusion.forecaster import DiffusionForecaster
+
+    torch.manual_seed(0)
+    model = TrajectoryDiffusion(SMALL).eval()
+    with torch.no_grad():  # an untrained map encoder would barely move the output: make the map matter
+        model.cond.no_map.add_(3.0)
+    b = {k: v.numpy() for k, v in _straight(4, torch.Generator().manual_seed(1)).items()}
+    occ = torch.zeros(4, 16, 16).numpy()
+    occ[:, :, 10:] = 1.0
+    fc = DiffusionForecaster(model, seed=3)
+    with_map = fc.predict({**b, "map": occ, "has_map": torch.ones(4, dtype=torch.bool).numpy()}, 2)
+    withheld = fc.predict({**b, "map": occ, "has_map": torch.zeros(4, dtype=torch.bool).numpy()}, 2)
+    no_key = fc.predict(b, 2)
+    assert with_map.shape == (4, 2, 12, 2)
+    assert abs(with_map - withheld).max() > 1e-3  # the crop reaches the model
+    assert abs(withheld - no_key).max() < 1e-6  # withheld = absent: the "no map" embedding

@@ -20,6 +20,9 @@ MODEL_ENV = "NAVZOO_DIFFUSION_MODEL"  # model directory used by `navzoo eval for
 class DiffusionForecaster:
     """Samples ``n_samples`` futures per window (no guidance: the data gives no goals).
 
+    A model with a map input uses the batch's ``map`` / ``has_map`` (agent-frame occupancy crops of
+    :mod:`navzoo.forecast.sim_data`) where the batch has them, its "no map" embedding otherwise.
+
     Args:
         model: a model or an exported model directory; None = ``$NAVZOO_DIFFUSION_MODEL`` or the
             shipped ``policies/trajectory_diffusion``.
@@ -50,6 +53,9 @@ class DiffusionForecaster:
         hist = np.asarray(batch["hist"], dtype=np.float64)
         n = hist.shape[0]
         keys = [k for k in ("hist", "neigh", "neigh_mask", "dt") if k in batch]
+        # Occupancy crops are always in the window's agent frame (navzoo.forecast.sim_data), so they pass
+        # through the normalisation unchanged; models without a map input ignore them.
+        maps = [k for k in ("map", "has_map") if k in batch] if self.model.cfg.map_cells else []
         g = torch.Generator(device="cpu").manual_seed(self.seed)
         out = []
         # The model works in agent-centric frames: move each window's history so that its last point
@@ -60,8 +66,9 @@ class DiffusionForecaster:
                                  "rot": np.repeat(np.eye(2)[None], n, axis=0)})
         for i in range(0, n, self.batch):
             sl = slice(i, i + self.batch)
-            t = {k: torch.as_tensor(np.asarray(local[k])[sl], dtype=torch.bool if k == "neigh_mask" else torch.float32,
-                                    device=self.device) for k in keys}
+            src = {**{k: local[k] for k in keys}, **{k: batch[k] for k in maps}}
+            t = {k: torch.as_tensor(np.asarray(v)[sl], dtype=torch.bool if k in ("neigh_mask", "has_map") else torch.float32,
+                                    device=self.device) for k, v in src.items()}
             with torch.no_grad():
                 out.append(self.model.sample(t, n_samples, generator=g).cpu().numpy().astype(np.float64))
         pred = np.concatenate(out) if out else np.zeros((0, n_samples, self.model.cfg.horizon, 2))
