@@ -5,7 +5,7 @@
 #
 # Resumes from the checkpoint committed in training/amp (RESUME_DIR), trains for LIMIT_S seconds on
 # 15 worker processes x 16 humanoids with the networks on the GPU, and writes the new checkpoint to
-# $OUT split in 15 MiB parts (the device tool returns files of at most 16 MiB), with metrics.jsonl and
+# $OUT split in 15 MiB parts (the device tool returns files of at most 16 MiB), with metrics.jsonl.gz and
 # the log. Copy those files back into training/amp to continue in a later session.
 # RESET_DISC=1: resume with a fresh discriminator (needed once when the discriminator inputs changed meaning,
 # e.g. from checkpoint 3315 to the finite-difference / grounded inputs); TRAIN_ARGS: more train.py flags.
@@ -21,7 +21,7 @@ if [ -f "$RESUME_DIR/name" ]; then
   mkdir -p /tmp/amp/checkpoints/$name
   cat "$RESUME_DIR"/state.pt.part-* > /tmp/amp/checkpoints/$name/state.pt
   cp "$RESUME_DIR/meta.json" /tmp/amp/checkpoints/$name/ && cp "$RESUME_DIR/latest.json" /tmp/amp/checkpoints/
-  [ -f "$RESUME_DIR/metrics.jsonl" ] && cp "$RESUME_DIR/metrics.jsonl" /tmp/amp/
+  [ -f "$RESUME_DIR/metrics.jsonl.gz" ] && gunzip -c "$RESUME_DIR/metrics.jsonl.gz" > /tmp/amp/metrics.jsonl
   echo "resuming from $name"
 fi
 timeout "${TRAIN_S:-500}" python3 -m navzoo.agents.amp.train --out /tmp/amp --workers 15 --envs-per-worker 16 \
@@ -30,7 +30,7 @@ timeout "${TRAIN_S:-500}" python3 -m navzoo.agents.amp.train --out /tmp/amp --wo
   --reset-disc "${RESET_DISC:-0}" ${TRAIN_ARGS:-} --json > "$OUT/train.log" 2>&1
 echo "train rc=$?"
 tail -5 "$OUT/train.log"
-cp /tmp/amp/metrics.jsonl "$OUT/" 2>/dev/null
+gzip -c /tmp/amp/metrics.jsonl > "$OUT/metrics.jsonl.gz" 2>/dev/null
 name=$(python3 -c "import json;print(json.load(open('/tmp/amp/checkpoints/latest.json'))['checkpoint'])")
 echo "$name" > "$OUT/name"
 cp /tmp/amp/checkpoints/latest.json /tmp/amp/checkpoints/$name/meta.json "$OUT/"

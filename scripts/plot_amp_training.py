@@ -1,6 +1,6 @@
-"""Plot the AMP training curves of training/amp/metrics.jsonl into docs/img/amp_training.png.
+"""Plot the AMP training curves of training/amp/metrics.jsonl.gz into docs/img/amp_training.png.
 
-    python scripts/plot_amp_training.py [--metrics training/amp/metrics.jsonl] [--out docs/img/amp_training.png]
+    python scripts/plot_amp_training.py [--metrics training/amp/metrics.jsonl.gz] [--out docs/img/amp_training.png]
 
 Stage boundaries (curriculum changes) are taken from training/amp/stages.json: a list of
 {"from_step": N, "label": "..."} entries, drawn as vertical lines.
@@ -9,6 +9,7 @@ Stage boundaries (curriculum changes) are taken from training/amp/stages.json: a
 from __future__ import annotations
 
 import argparse
+import gzip
 import json
 from pathlib import Path
 
@@ -28,11 +29,13 @@ def smooth(y: np.ndarray, k: int = 25) -> np.ndarray:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--metrics", default="training/amp/metrics.jsonl")
+    ap.add_argument("--metrics", default="training/amp/metrics.jsonl.gz")
     ap.add_argument("--stages", default="training/amp/stages.json")
     ap.add_argument("--out", default="docs/img/amp_training.png")
     args = ap.parse_args()
-    rows = [json.loads(line) for line in Path(args.metrics).read_text().splitlines() if line.strip()]
+    opener = gzip.open if args.metrics.endswith(".gz") else open
+    with opener(args.metrics, "rt") as f:
+        rows = [json.loads(line) for line in f if line.strip()]
     step = np.array([r["global_step"] for r in rows]) / 1e6
     panels = [("episode/task_return", "episode task return"), ("episode/length", "episode length (steps, 30 Hz)"),
               ("rewards/style", "style reward / step"), ("disc/acc_policy", "discriminator accuracy on policy")]
@@ -53,7 +56,7 @@ def main() -> None:
                         va="top")
     for ax in axes[1]:
         ax.set_xlabel("samples (millions)")
-    fig.suptitle("AMP pedestrian controller: training (training/amp/metrics.jsonl)")
+    fig.suptitle("AMP pedestrian controller: training (training/amp/metrics.jsonl.gz)")
     fig.tight_layout()
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(args.out, dpi=110)
