@@ -105,8 +105,8 @@ def target_points(env) -> np.ndarray | None:
 
     AMP pedestrians: the current point of their target trajectory (``env.amp.target_now()``, for every
     crowd model). Kinematic pedestrians of the ``"diffusion"`` crowd: the current point of their
-    diffusion plan (the plan made at ``plan_time``, linearly interpolated between its 0.4 s points at
-    ``sim_time - plan_time``; the social force between plans makes them deviate from it). Kinematic
+    diffusion plan (``DiffusionCrowd.points_now``: linear between the plan's 0.4 s points, which start
+    at the person's ``plan_t0``; the social force between plans makes them deviate from it). Kinematic
     pedestrians of rule-based crowds have no target trajectory besides their own motion: None (not
     applicable).
     """

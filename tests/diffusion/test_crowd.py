@@ -110,3 +110,30 @@ def test_amp_target_paths_start_at_the_bodies_and_ramp_up_from_their_speed(model
     assert (pace <= AMP_SPEED_FACTOR * env.v_pref[:, None] + 1e-6).all()
     assert (pace <= v0[:, None] + ACCEL_LIMIT * t[None] + 1e-6).all()
     env.close()
+
+
+def test_new_goal_replans_only_that_person_and_plans_blend(model_dir):
+    env = NavEnv(scene="lobby", n_robots=0, n_humans=4, crowd_model="diffusion", diffusion_model=str(model_dir),
+                 diffusion_samples=2, time_limit=8.0)
+    w = FrozenAgents(env, lambda a: a.startswith("human_"), CrowdPolicy("diffusion"))
+    w.reset(seed=1)
+    for _ in range(5):
+        w.step({})
+    crowd = env.diffusion
+    before, t0_before, made = crowd.plan.copy(), crowd.plan_t0.copy(), crowd.plans_made
+    env.goals_reached[2] += 1  # person 2 got a new goal (as the env does when it reaches one)
+    crowd.maybe_plan(env)
+    assert crowd.plans_made == made + 1
+    keep = [0, 1, 3]
+    np.testing.assert_array_equal(crowd.plan[keep], before[keep])  # the others keep their plans
+    np.testing.assert_array_equal(crowd.plan_t0[keep], t0_before[keep])
+    assert crowd.plan_t0[2] == crowd.hist_time > t0_before[2]
+    # Blending: with an endless blend the new plan continues the old one's motion from its row 0.
+    crowd.blend_s = 1e9
+    old = crowd._plans_at(crowd.hist_time + np.arange(13) * 0.4)
+    plan = crowd.plan_now(env)
+    np.testing.assert_allclose(plan - plan[:, :1], old - old[:, :1], atol=1e-6)
+    np.testing.assert_allclose(plan[:, 0], crowd.hist[:, -1], atol=1e-6)  # still starts at the last history point
+    w.close()
+    with pytest.raises(ValueError, match="blend_s"):
+        DiffusionCrowd(TrajectoryDiffusion(CFG), blend_s=-1.0)

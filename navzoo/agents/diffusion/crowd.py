@@ -149,7 +149,7 @@ class DiffusionCrowd:
                  replan_s: float = 2.0, guidance_scale: float = 0.05, target_weight: float = 1.0,
                  agent_weight: float = 10.0, map_weight: float = 10.0, k_neighbors: int = 16,
                  neighbor_radius: float = 10.0, seed: int = 0, device: str = "cpu",
-                 path_weight: float = 20.0) -> None:
+                 path_weight: float = 20.0, blend_s: float = 1.2) -> None:
         if model is None or isinstance(model, (str, Path)):
             from navzoo.agents.diffusion.trainer import load_model
 
@@ -163,6 +163,8 @@ class DiffusionCrowd:
             raise ValueError(f"n_samples must be >= 1, got {n_samples!r}")
         if not replan_s > 0:
             raise ValueError(f"replan_s must be > 0, got {replan_s!r}")
+        if not blend_s >= 0:
+            raise ValueError(f"blend_s must be >= 0, got {blend_s!r}")
         self.model = model.eval()
         self.cfg = model.cfg
         self.n_samples = int(n_samples)
@@ -174,6 +176,7 @@ class DiffusionCrowd:
         self.seed = int(seed)
         self.device = device
         self.path_weight = float(path_weight)
+        self.blend_s = float(blend_s)
         self.n = 0
 
     # ------------------------------------------------------------------ state
@@ -192,8 +195,9 @@ class DiffusionCrowd:
         self.hist = env.pos[:, None, :] - back * (speed[:, None, None] * direction[:, None, :])
         self.hist_time = env.sim_time
         self.plan: np.ndarray | None = None  # (H, steps + 1, 2) world positions of pedestrians
-        self.plan_time = -np.inf
-        self._goals_at_plan = -1
+        self.plan_t0 = np.full(env.n_humans, -np.inf)  # time of each plan's row 0 (its last history point)
+        self.batch_time = -np.inf  # time of the last replan of everyone
+        self._goals_seen = env.goals_reached[env.n_robots:].copy()
         self.plans_made = 0
 
     def observe(self, env: NavEnv) -> None:
@@ -223,14 +227,24 @@ class DiffusionCrowd:
         return {"hist": self.hist[people].copy(), "neigh": neigh, "neigh_mask": mask,
                 "dt": np.full(B, MODEL_DT), "origin": np.zeros((B, 2)), "rot": np.repeat(np.eye(2)[None], B, axis=0)}
 
-    def plan_now(self, env: NavEnv) -> np.ndarray:
-        """Plan every pedestrian now; returns (H, steps + 1, 2) world positions (row 0 = now)."""
+    def plan_now(self, env: NavEnv, who: np.ndarray | None = None) -> np.ndarray:
+        """Plan pedestrians now: all of them, or those of ``who`` (indices among the pedestrians, 0..n_humans-1).
+
+        Returns every pedestrian's plan, (H, steps + 1, 2) world positions every 0.4 s from its last
+        history point (row 0, at ``plan_t0``). A person who had a plan blends into the new one over
+        ``blend_s`` seconds: its displacement from row 0 starts as the old plan's and turns linearly
+        into the new sample's, so its velocity does not jump at a replan.
+        """
         R, N = env.n_robots, env.n_total
-        people = np.arange(R, N)
         H = self.cfg.horizon
-        if people.size == 0:
+        if N - R == 0:
             self.plan = np.zeros((0, H + 1, 2))
             return self.plan
+        everyone = who is None or self.plan is None or self.plan.shape[0] != N - R
+        who = np.arange(N - R) if everyone else np.unique(np.asarray(who, dtype=int))
+        if who.size == 0:
+            return self.plan
+        people = R + who
         world = self._world_batch(env, people)
         local = fdata.normalize(world)
         B = people.size
@@ -247,7 +261,7 @@ class DiffusionCrowd:
             batch["has_map"] = torch.ones(B, dtype=torch.bool)
         # Guidance: the path point v_pref x horizon ahead, others' current plans, the scene's walls.
         horizon_s = H * MODEL_DT
-        standing = env.arrived[people] | env.human_fallen
+        standing = env.arrived[people] | env.human_fallen[who]
         # People who walk on to a new goal keep their pace through the goal: near it, the target lies
         # beyond it on the path's last line (else every plan would end at the goal, and each replan
         # would slow down further as the goal comes closer); people who stop there aim at it.
@@ -297,12 +311,23 @@ class DiffusionCrowd:
         best = samples[torch.arange(B), cost.argmin(dim=1)].numpy().astype(np.float64)  # (B, H, 2)
         path = np.concatenate([np.zeros((B, 1, 2)), best], axis=1)
         plan = fdata.to_world(path, local)
+        t0 = self.hist_time
+        if self.blend_s > 0 and self.plan is not None and self.plan.shape[0] == N - R:
+            old = self._plans_at(t0 + np.arange(H + 1) * MODEL_DT)[who]  # (B, H+1, 2)
+            had = np.isfinite(self.plan_t0[who])
+            w = np.minimum(1.0, np.arange(H + 1) * MODEL_DT / self.blend_s)[None, :, None]
+            blended = plan[:, :1] + (1.0 - w) * (old - old[:, :1]) + w * (plan - plan[:, :1])
+            plan[had] = blended[had]
         plan[standing] = env.pos[people][standing][:, None, :]  # arrived or fallen people stay
-        self.plan = plan
-        self.plan_time = env.sim_time
-        self._goals_at_plan = int(env.goals_reached[R:].sum())
+        if everyone:
+            self.plan = plan
+            self.batch_time = env.sim_time
+        else:
+            self.plan[who] = plan
+        self.plan_t0[who] = t0
+        self._goals_seen[who] = env.goals_reached[people]
         self.plans_made += 1
-        return plan
+        return self.plan
 
     def _others_future(self, env: NavEnv, people: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """Every other agent's next 12 positions (B, M, H, 2) in the world: people on their current
@@ -322,42 +347,47 @@ class DiffusionCrowd:
             paths = np.take_along_axis(amp.paths, np.minimum(k, amp.path_len - 1)[..., None], axis=1)  # (H, H', 2)
             fut[people_now] = paths[agents[people_now] - R]
         elif self.plan is not None and self.plan.shape[0] == env.n_humans:
-            fut[people_now] = self._plans_at(env.sim_time - self.plan_time + steps[0, :, 0])[agents[people_now] - R]
+            fut[people_now] = self._plans_at(env.sim_time + steps[0, :, 0])[agents[people_now] - R]
         B = people.size
         others = np.repeat(fut[None], B, axis=0)
         mask = agents[None, :] != people[:, None]
         return others, mask
 
     def _plans_at(self, t: float | np.ndarray) -> np.ndarray:
-        """Positions (H, len(t), 2) of every pedestrian's plan at times t (s after it was made),
-        linear between plan points and held at the end (all plans share one time grid)."""
+        """Positions (H, len(t), 2) of every pedestrian's plan at sim times ``t``, linear between plan
+        points (0.4 s apart from each plan's ``plan_t0``) and held at the end."""
         K = self.plan.shape[1]
-        f = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), 0.0, (K - 1) * MODEL_DT) / MODEL_DT
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        f = np.clip(t[None, :] - self.plan_t0[:, None], 0.0, (K - 1) * MODEL_DT) / MODEL_DT  # (H, T)
         k0 = np.minimum(np.floor(f).astype(int), K - 2)
-        w = (f - k0)[None, :, None]
-        return self.plan[:, k0] * (1.0 - w) + self.plan[:, k0 + 1] * w
+        w = (f - k0)[..., None]
+        rows = np.arange(self.plan.shape[0])[:, None]
+        return self.plan[rows, k0] * (1.0 - w) + self.plan[rows, k0 + 1] * w
 
     # ------------------------------------------------------------------ outputs
     def points_now(self, env: NavEnv) -> np.ndarray | None:
         """(H, 2) every pedestrian's current plan point (None before the first plan)."""
         if self.plan is None or self.plan.shape[0] != env.n_humans:
             return None
-        return self._plans_at(env.sim_time - self.plan_time)[:, 0]
+        return self._plans_at(env.sim_time)[:, 0]
 
     def maybe_plan(self, env: NavEnv, force: bool = False) -> None:
-        """Plan when ``replan_s`` has passed since the last plan, or when someone got a new goal."""
-        goals = int(env.goals_reached[env.n_robots:].sum())
-        if (force or self.plan is None or env.sim_time - self.plan_time >= self.replan_s - 1e-9
-                or goals != self._goals_at_plan):
+        """Plan everyone when ``replan_s`` has passed since everyone was planned; in between, plan
+        only the people who got a new goal (the others keep their plans)."""
+        if (force or self.plan is None or self.plan.shape[0] != env.n_humans
+                or env.sim_time - self.batch_time >= self.replan_s - 1e-9):
             self.plan_now(env)
+            return
+        new_goal = np.flatnonzero(env.goals_reached[env.n_robots:] != self._goals_seen)
+        if new_goal.size:
+            self.plan_now(env, new_goal)
 
     def preferred_velocities(self, env: NavEnv, lookahead: float = 0.8) -> np.ndarray:
         """World velocities (H, 2) toward each plan's point ``lookahead`` seconds ahead, at the plan's
         pace: the preferred velocity that a local collision-avoidance model then follows."""
         self.maybe_plan(env)
         R = env.n_robots
-        t_rel = env.sim_time - self.plan_time + lookahead
-        ahead = self._plans_at(t_rel)[:, 0]
+        ahead = self._plans_at(env.sim_time + lookahead)[:, 0]
         v = (ahead - env.pos[R:]) / lookahead
         speed = np.linalg.norm(v, axis=1, keepdims=True)
         vmax = env.config.human_max_speed
