@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import sys
 import time
 from collections.abc import Mapping, Sequence
@@ -140,8 +139,14 @@ def evaluate_map_use(
         "ground_truth": {"obstacle_rate": float(gt_hit.sum() / max(int(gt_in.sum()), 1)),
                          "windows_in_obstacle": float(np.mean(gt_hit.reshape(n, -1).any(axis=1)))},
         "results": results, "wall_s": round(time.time() - t0, 1),
-        "machine": f"{platform.machine()} {platform.processor() or ''}".strip() + f", python {platform.python_version()}",
+        "machine": _machine(),
     }
+
+
+def _machine() -> str:
+    from navzoo.benchmark.crowd_eval import _machine as machine
+
+    return machine()
 
 
 def format_table(result: Mapping[str, Any]) -> str:

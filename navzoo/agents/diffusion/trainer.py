@@ -204,7 +204,8 @@ def _validation_loss(model: TrajectoryDiffusion, windows: dict[str, np.ndarray],
     total, count = 0.0, 0
     for i in range(0, len(rows), 512):
         b = windows_to_batch(windows, rows[i:i + 512], device)
-        loss, _ = model.loss(b, generator=g if device == "cpu" else None)  # fixed noise where it can be
+        with torch.no_grad():
+            loss, _ = model.loss(b, generator=g if device == "cpu" else None)  # fixed noise where it can be
         total += float(loss) * len(rows[i:i + 512])
         count += len(rows[i:i + 512])
     model.train()
