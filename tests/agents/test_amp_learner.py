@@ -454,10 +454,11 @@ def test_sigint_finishes_the_iteration_then_checkpoints(tmp_path: Path) -> None:
             return super().step(actions)
 
     learner = AmpLearner(Signalling(ToyConfig(num_envs=16, episode_steps=12)), toy_amp_config(**_RESUME_CFG))
+    before = signal.getsignal(signal.SIGINT)  # the default handler, or SIG_IGN under nohup / a background job
     out = learner.train(10 * 128, ckpt_dir=tmp_path, ckpt_every=100)
     assert out["interrupted"] and out["iteration"] == 2
     assert latest_checkpoint(tmp_path).name == "ckpt_00000002"
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert signal.getsignal(signal.SIGINT) is before  # the learner puts the caller's handler back
 
 
 def test_export_and_load_policy(tmp_path: Path) -> None:
