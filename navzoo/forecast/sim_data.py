@@ -363,17 +363,11 @@ def build_sim_dataset(
     scenes = list(scenes)
     t0 = time.time()
     runs: list[dict[str, Any]] = []
-    jobs = [(scene, c) for c in crowds for scene in scenes]  # crowd-major: the order of the output
-    if workers <= 1:
-        results = [_simulate_one(scene, c, people, seconds, seed, map_cells, window_kwargs) for scene, c in jobs]
-    else:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor
+    from navzoo.benchmark.pedestrians import _pool_map
 
-        with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=mp.get_context("spawn")) as pool:
-            futures = [pool.submit(_simulate_one, scene, c, people, seconds, seed, map_cells, window_kwargs)
-                       for scene, c in jobs]
-            results = [f.result() for f in futures]
+    # crowd-major: the order of the output, whatever the number of workers
+    jobs = [(scene, c, people, seconds, seed, map_cells, window_kwargs) for c in crowds for scene in scenes]
+    results = _pool_map(_simulate_one, jobs, workers)
     batches = []
     for w, run in results:
         runs.append(run)
