@@ -111,12 +111,13 @@ def evaluate_map_use(
     "results": {row: {...}}, "wall_s", "machine"}``.
     """
     from navzoo.agents.diffusion.forecaster import DiffusionForecaster
+    from navzoo.benchmark.crowd_eval import _machine as crowd_machine
     from navzoo.forecast.baselines import ConstantVelocity
 
     t0 = time.time()
     batch = _windows(scenes, crowds, seconds, seed, 32, stride, log)
     n = fdata.batch_size(batch)
-    gt_hit, gt_in = obstacle_hits(np.asarray(batch["fut"])[:, None], batch["map"])
+    truth = score_on_map(np.asarray(batch["fut"])[:, None], batch)
     results: dict[str, dict[str, float]] = {}
     cv = ConstantVelocity().predict(batch, 1)
     results["constant velocity"] = score_on_map(cv, batch)
@@ -136,17 +137,10 @@ def evaluate_map_use(
     return {
         "windows": n, "scenes": list(scenes), "crowds": list(crowds), "seconds": float(seconds), "seed": int(seed),
         "samples": int(samples), "stride": int(stride),
-        "ground_truth": {"obstacle_rate": float(gt_hit.sum() / max(int(gt_in.sum()), 1)),
-                         "windows_in_obstacle": float(np.mean(gt_hit.reshape(n, -1).any(axis=1)))},
+        "ground_truth": {k: truth[k] for k in ("obstacle_rate", "windows_in_obstacle")},
         "results": results, "wall_s": round(time.time() - t0, 1),
-        "machine": _machine(),
+        "machine": crowd_machine(),
     }
-
-
-def _machine() -> str:
-    from navzoo.benchmark.crowd_eval import _machine as machine
-
-    return machine()
 
 
 def format_table(result: Mapping[str, Any]) -> str:
