@@ -66,6 +66,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_diffusion_arguments(tsub.add_parser(
         "diffusion", help="the trajectory diffusion model on ETH/UCY (resumable; see docs/crowd.md)"))
+    from navzoo.perception.train import add_arguments as add_perception_arguments
+
+    add_perception_arguments(tsub.add_parser(
+        "perception", help="the Monoloco keypoint network on data from navzoo scenes (resumable; see docs/perception.md)"))
 
     ev = sub.add_parser("eval", help="evaluate a component of navzoo")
     esub = ev.add_subparsers(dest="eval_command", metavar="WHAT")
@@ -80,6 +84,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_crowd_eval_arguments(esub.add_parser(
         "crowd", help="closed-loop crowds: realism vs ETH/UCY, pedestrian reliability table, replan and step cost"))
+    from navzoo.perception.evaluate import add_arguments as add_perception_eval_arguments
+
+    add_perception_eval_arguments(esub.add_parser(
+        "perception", help="robot perception of people: localisation, detection, tracking, navigation, cost"))
 
     bench = sub.add_parser(
         "benchmark", help="run robot policies over scenes x crowds x densities x episodes (parallel, resumable)",
@@ -151,6 +159,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                 from navzoo.benchmark.crowd_eval import run_cli as run_crowd_cli
 
                 return run_crowd_cli(args)
+            if args.eval_command == "perception":
+                from navzoo.perception.evaluate import run_cli as run_perception_cli
+
+                return run_perception_cli(args, parser.error)
             parser.parse_args(["eval", "--help"])
             return 2
     except (ValueError, TypeError, FileNotFoundError, OSError) as exc:
@@ -234,6 +246,10 @@ def _train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         from navzoo.agents.diffusion.train import run_cli as run_diffusion
 
         return run_diffusion(args)
+    if args.train_command == "perception":
+        from navzoo.perception.train import run_cli as run_perception
+
+        return run_perception(args, parser.error)
     parser.parse_args(["train", "--help"])
     return 2
 

@@ -26,7 +26,13 @@ import numpy as np
 
 from navzoo.agents.dwa import DWAParams, DWAPolicy, _check_kinematics, _robot_indices, obstacle_speed_filter
 from navzoo.agents.orca import OrcaParams, orca_velocities
-from navzoo.agents.policy import Policy, preferred_velocity, velocity_to_diff_drive
+from navzoo.agents.policy import (
+    Policy,
+    act_per_robot,
+    perceived_others,
+    preferred_velocity,
+    velocity_to_diff_drive,
+)
 from navzoo.agents.sfm import SocialForceParams, social_force_velocities
 
 if TYPE_CHECKING:
@@ -130,6 +136,9 @@ class OrcaRobotPolicy:
         _check_kinematics(self.kinematics, env, "orca")
 
     def act(self, observations: dict[str, Any], env: NavEnv) -> dict[str, np.ndarray]:
+        split = act_per_robot(self, observations, env)
+        if split is not None:
+            return split
         idx = _robot_indices(observations, env)
         if idx.size == 0:
             return {}
@@ -138,20 +147,30 @@ class OrcaRobotPolicy:
         margin = self.radius_margin
         if margin is None:
             margin = 0.0 if spec.kinematics == "holonomic" else 0.1
-        others = _others(env, idx)
-        order = np.concatenate([idx, others])
+        seen = perceived_others(env, idx)
+        if seen is None:
+            others = _others(env, idx)
+            o_pos, o_vel, o_rad, o_robot = env.pos[others], env.vel[others], env.radius[others], env.is_robot[others]
+        else:  # perceived people (and ground-truth robots) from a PerceptionWrapper
+            o_pos, o_vel, o_rad = seen
+            o_robot = np.zeros(len(o_pos), dtype=bool)
+            o_robot[:int(np.sum(env.alive & env.is_robot)) - 1] = True
+        n_o = len(o_pos)
+        pos = np.concatenate([env.pos[idx], o_pos])
+        vel = np.concatenate([env.vel[idx], o_vel])
         wp = env.next_waypoints()[idx]
         pref = preferred_velocity(env.pos[idx], wp, env.goal[idx], env.v_pref[idx],
                                   slow_radius=1.0 if self.crowdnav else 0.5)
         if self.crowdnav:  # CrowdNav: one RVO2 simulator, every agent at radius + 0.01, others' goals unknown
-            all_pref = np.concatenate([pref, np.zeros((others.size, 2))])
-            vmax = np.full(order.size, spec.max_speed)
-            radius = env.radius[order] + 0.01
+            all_pref = np.concatenate([pref, np.zeros((n_o, 2))])
+            vmax = np.full(idx.size + n_o, spec.max_speed)
+            radius = np.concatenate([env.radius[idx], o_rad]) + 0.01
         else:
-            all_pref = np.concatenate([pref, env.vel[others]])
-            vmax = np.where(env.is_robot[order], spec.max_speed, env.config.human_max_speed)
-            radius = env.radius[order] + np.where(np.arange(order.size) < idx.size, margin, 0.0)
-        desired = orca_velocities(env.pos[order], env.vel[order], all_pref, radius, vmax, env.config.dt,
+            all_pref = np.concatenate([pref, o_vel])
+            vmax = np.concatenate([np.full(idx.size, spec.max_speed),
+                                   np.where(o_robot, spec.max_speed, env.config.human_max_speed)])
+            radius = np.concatenate([env.radius[idx] + margin, o_rad])
+        desired = orca_velocities(pos, vel, all_pref, radius, vmax, env.config.dt,
                                   self.params, env.segments, n_active=idx.size)
         return _to_actions(env, idx, desired, self.wall_filter)
 
@@ -184,16 +203,22 @@ class SocialForceRobotPolicy:
         _check_kinematics(self.kinematics, env, "sfm")
 
     def act(self, observations: dict[str, Any], env: NavEnv) -> dict[str, np.ndarray]:
+        split = act_per_robot(self, observations, env)
+        if split is not None:
+            return split
         idx = _robot_indices(observations, env)
         if idx.size == 0:
             return {}
         _check_kinematics(self.kinematics, env, "sfm")
-        others = _others(env, idx)
+        seen = perceived_others(env, idx)
+        if seen is None:
+            others = _others(env, idx)
+            seen = (env.pos[others], env.vel[others], env.radius[others])
         pref = preferred_velocity(env.pos[idx], env.next_waypoints()[idx], env.goal[idx], env.v_pref[idx])
         vel = social_force_velocities(
             env.pos[idx], env.vel[idx], pref, env.radius[idx], env.config.robot.max_speed, env.config.dt,
-            self.params, env.segments, others_pos=env.pos[others], others_vel=env.vel[others],
-            others_radius=env.radius[others], segment_groups=env.segment_groups,
+            self.params, env.segments, others_pos=seen[0], others_vel=seen[1],
+            others_radius=seen[2], segment_groups=env.segment_groups,
         )
         return _to_actions(env, idx, vel, self.wall_filter)
 

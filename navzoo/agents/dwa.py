@@ -42,6 +42,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from navzoo.agents.policy import act_per_robot, perceived_others
+
 if TYPE_CHECKING:
     from navzoo.envs.nav_env import NavEnv
 
@@ -245,6 +247,9 @@ class DWAPolicy:
         return cands[0] if fallback else None
 
     def act(self, observations: dict[str, Any], env: NavEnv) -> dict[str, np.ndarray]:
+        split = act_per_robot(self, observations, env)
+        if split is not None:
+            return split
         idx = _robot_indices(observations, env)
         if idx.size == 0:
             return {}
@@ -280,17 +285,23 @@ class DWAPolicy:
         c_obs = np.exp(-np.clip(clear.min(axis=2), 0.0, None) / prm.obstacle_scale)
 
         # People and other robots at constant velocity.
-        others = np.flatnonzero(env.alive & env.present)  # absent (replay: parked) people left out
+        seen = perceived_others(env, idx)
+        if seen is None:
+            others = np.flatnonzero(env.alive & env.present)  # absent (replay: parked) people left out
+            o_pos, o_vel, o_rad = env.pos[others], env.vel[others], env.radius[others]
+        else:  # perceived people (and ground-truth robots) from a PerceptionWrapper; never the robot itself
+            o_pos, o_vel, o_rad = seen
+            others = np.full(len(o_pos), -1)
         c_people = np.zeros(cand.shape[:2])
         c_coll = np.zeros(cand.shape[:2])
         if others.size:
-            q = env.pos[others][:, None, :] + env.vel[others][:, None, :] * t[None, :, None]  # (M, K, 2)
+            q = o_pos[:, None, :] + o_vel[:, None, :] * t[None, :, None]  # (M, K, 2)
             diff_xy = traj[:, :, None, :, :] - q[None, None]  # (R, C, M, K, 2)
             gap = np.hypot(diff_xy[..., 0], diff_xy[..., 1])
             if prm.people_may_stop:  # a person may also stop where they are: the nearer of the two
-                still = traj[:, :, None, :, :] - env.pos[others][None, None, :, None, :]
+                still = traj[:, :, None, :, :] - o_pos[None, None, :, None, :]
                 gap = np.minimum(gap, np.hypot(still[..., 0], still[..., 1]))
-            gap = gap - radius[:, None, None, None] - env.radius[others][None, None, :, None]
+            gap = gap - radius[:, None, None, None] - o_rad[None, None, :, None]
             gap = np.where((others[None, :] == idx[:, None])[:, None, :, None], np.inf, gap)
             gap = gap.min(axis=2)  # (R, C, K): nearest other at each time
             if np.isfinite(gap).any():

@@ -51,6 +51,48 @@ def preferred_velocity(pos: np.ndarray, waypoint: np.ndarray, goal: np.ndarray, 
     return np.where(dist[:, None] > 1e-6, d / np.maximum(dist, 1e-6)[:, None] * speed[:, None], 0.0)
 
 
+def perceived_others(env: NavEnv, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """What robot ``idx[0]`` perceives of the others, when a perception wrapper is active.
+
+    :class:`navzoo.perception.PerceptionWrapper` publishes each robot's tracked people as
+    ``env.perceived_people[i] = (positions, velocities, radii)``. Privileged baselines call this and, when
+    it is not None, avoid those instead of the true people; the other robots stay ground truth (robots
+    share their state). Returns None when no perception is active.
+
+    Returns:
+        ``(positions (M, 2), velocities (M, 2), radii (M,))`` of the other live robots and the perceived
+        people, or None.
+
+    Raises:
+        ValueError: When perception is active and ``idx`` holds more than one robot (each robot perceives
+            differently; act for one robot at a time, see :func:`act_per_robot`).
+    """
+    perceived = getattr(env, "perceived_people", None)
+    if not perceived:
+        return None
+    if len(idx) != 1:
+        raise ValueError("with perceived observations, act for one robot at a time (act_per_robot)")
+    i = int(idx[0])
+    robots = np.flatnonzero(env.alive & env.is_robot)
+    robots = robots[robots != i]
+    pp, pv, pr = perceived.get(i, (np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0)))
+    return (np.concatenate([env.pos[robots], pp]), np.concatenate([env.vel[robots], pv]),
+            np.concatenate([env.radius[robots], pr]))
+
+
+def act_per_robot(policy: Any, observations: Mapping[str, Any], env: NavEnv) -> dict[str, np.ndarray] | None:
+    """With perception active and several robots, ``policy.act`` for each robot alone (merged), else None."""
+    if not getattr(env, "perceived_people", None):
+        return None
+    robots = [a for a in observations if a.startswith("robot_")]
+    if len(robots) <= 1:
+        return None
+    out: dict[str, np.ndarray] = {}
+    for a in robots:
+        out.update(policy.act({a: observations[a]}, env))
+    return out
+
+
 # ---------------------------------------------------------------------------------------------
 # Observation-only policies (learned models) behind the same interface.
 

@@ -166,6 +166,9 @@ class NavEnv(ParallelEnv):
         self._planners: dict[float, AStarPlanner] = {}
         self.radius = np.array([cfg.robot.radius] * self.n_robots + [cfg.human_radius] * self.n_humans)
         self.is_robot = np.arange(self.n_total) < self.n_robots
+        # Set by navzoo.perception.PerceptionWrapper: {robot index: (positions, velocities, radii)} of the
+        # people each robot perceives, read by the privileged baselines instead of the true people.
+        self.perceived_people: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         self._samplers = {
             "robot": TaskSampler(self.scene, self.grid, cfg.robot.radius),
             "human": TaskSampler(self.scene, self.grid, cfg.human_radius),
@@ -315,6 +318,7 @@ class NavEnv(ParallelEnv):
         self.d_goal = np.linalg.norm(self.goal - self.pos, axis=1)
         self.shortest_path_length = np.array([_path_length(pth, s) for pth, s in zip(self.paths, self.pos, strict=True)])
         self.steps = 0
+        self.perceived_people = None  # a PerceptionWrapper sets it again after its own reset
         self.sim_time = 0.0
         self.action_clips = np.zeros(N, dtype=int)
         self.events: dict[str, str] = {}
