@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from navzoo.perception.monoloco import bearing_of, keypoint_features, wrap_angle
-from navzoo.perception.pipeline import observe_camera, people_ground_truth
+from navzoo.perception.pipeline import OCCLUSION_TOLERANCE, observe_camera, people_ground_truth
 from navzoo.sensors.camera_model import KeypointNoise, PinholeCamera, default_robot_cameras
 
 __all__ = ["EVAL_SCENES", "TRAIN_SCENES", "generate", "generate_scene", "load_dataset", "save_dataset"]
@@ -88,7 +88,7 @@ def generate_scene(scene: str, steps: int, seed: int, every: int = 2, draws: int
                         from navzoo.sensors.camera_model import occlusion_visible
 
                         scale = np.array([o.depth_image.shape[1] / cam.width, o.depth_image.shape[0] / cam.height])
-                        vis &= occlusion_visible(uv * scale, depth, o.depth_image, tolerance=0.25)
+                        vis &= occlusion_visible(uv * scale, depth, o.depth_image, tolerance=OCCLUSION_TOLERANCE)
                     for _ in range(draws):
                         det = noise.apply(uv, depth, vis, rng, image_size=cam)
                         keep = det.person_detected

@@ -42,6 +42,8 @@ __all__ = [
     "MonolocoEstimate",
     "MonolocoEstimator",
     "MonolocoNet",
+    "decode_outputs",
+    "export_model",
     "keypoint_features",
     "laplace_loss",
     "load_estimator",
@@ -234,16 +236,23 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def save_model(net: MonolocoNet, out_dir: str | Path, meta: dict | None = None) -> Path:
-    """Write ``model.pt`` (state_dict tensors only) and ``config.json`` (architecture, sha256, ``meta``)."""
+def save_model(net: MonolocoNet, out_dir: str | Path, meta: dict | None = None, half: bool = False) -> Path:
+    """Write ``model.pt`` (state_dict tensors only) and ``config.json`` (architecture, sha256, ``meta``).
+
+    ``half=True`` stores the floating-point tensors as float16 (half the size, for shipping; they are
+    loaded back as float32).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     weights = out / "model.pt"
     tmp = out / "model.pt.tmp"
-    torch.save({k: v.detach().cpu() for k, v in net.state_dict().items()}, tmp)
+    state = {k: v.detach().cpu() for k, v in net.state_dict().items()}
+    if half:
+        state = {k: v.half() if v.is_floating_point() else v for k, v in state.items()}
+    torch.save(state, tmp)
     tmp.replace(weights)
     config = {"architecture": asdict(net.config), "input_dim": INPUT_DIM, "output_dim": OUTPUT_DIM,
-              "sha256": _sha256(weights), **(meta or {})}
+              "sha256": _sha256(weights), "dtype": "float16" if half else "float32", **(meta or {})}
     (out / "config.json").write_text(json.dumps(config, indent=2) + "\n")
     return weights
 
@@ -269,7 +278,24 @@ def load_estimator(model_dir: str | Path | None = None, device: str = "cpu") -> 
     try:
         net = MonolocoNet(MonolocoConfig(**meta.get("architecture", {})))
         state = torch.load(w, map_location="cpu", weights_only=True)
-        net.load_state_dict(state)
+        net.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in state.items()})
     except (TypeError, RuntimeError) as err:
         raise ValueError(f"{w} does not fit the architecture in {cfg_path}: {err}") from err
     return MonolocoEstimator(net, meta, device)
+
+
+def export_model(src_dir: str | Path, dst_dir: str | Path, half: bool = True) -> Path:
+    """Copy a trained model (``navzoo train perception``'s ``<out>/model``) to ``dst_dir`` for shipping,
+    as float16 by default, keeping its metadata (validation figures, epoch)."""
+    est = load_estimator(src_dir)
+    meta = {k: v for k, v in est.meta.items()
+            if k not in ("architecture", "input_dim", "output_dim", "sha256", "dtype")}
+    return save_model(est.net, dst_dir, meta, half=half)
+
+
+if __name__ == "__main__":  # python -m navzoo.perception.monoloco export SRC DST
+    import sys
+
+    if len(sys.argv) != 4 or sys.argv[1] != "export":
+        raise SystemExit("usage: python -m navzoo.perception.monoloco export SRC_MODEL_DIR DST_DIR")
+    print(export_model(sys.argv[2], sys.argv[3]))

@@ -132,7 +132,7 @@ def train(out: Path, data: dict[str, np.ndarray], epochs: int, batch_size: int, 
                 loss.backward()
                 torch.nn.utils.clip_grad_norm_(net.parameters(), 5.0)
                 opt.step()
-                total += float(loss) * len(b)
+                total += loss.item() * len(b)
             sched.step()
             net.eval()
             with torch.no_grad():
@@ -172,7 +172,8 @@ def add_arguments(ap: argparse.ArgumentParser) -> argparse.ArgumentParser:
     ap.add_argument("--hidden", type=int, default=256)
     ap.add_argument("--blocks", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--threads", type=int, default=None, help="torch threads")
+    ap.add_argument("--threads", type=int, default=1,
+                    help="torch threads (default 1: the network is small, more threads only add synchronisation)")
     return ap
 
 

@@ -16,7 +16,8 @@ publishes each robot's perceived people as ``env.unwrapped.perceived_people[robo
 (positions (M, 2), velocities (M, 2), radii (M,))``, which the baselines of
 :mod:`navzoo.agents.baselines` use instead of the true people when it is set. ``info[robot]`` gains
 ``perception/detections`` and ``perception/tracks``; with ``images=True`` also
-``perception/images``: each camera's :class:`~navzoo.sensors.render.CameraImages` at full resolution.
+``perception/images``: each camera's :class:`~navzoo.sensors.render.CameraImages` at full resolution;
+with ``lidar=Lidar2D(...)`` also ``perception/lidar``, a :class:`~navzoo.sensors.LidarScan`.
 """
 
 from __future__ import annotations
@@ -43,11 +44,19 @@ class PerceptionWrapper(_NavWrapper):
         perception: The perception pipeline (default :class:`RobotPerception` with the shipped network).
         images: Also render each robot's camera images into ``info[robot]["perception/images"]``.
         publish_to_env: Set ``env.unwrapped.perceived_people`` for the privileged baselines.
+        lidar: Also scan a 2D lidar (:class:`navzoo.sensors.Lidar2D`, e.g. ``Lidar2D()``) into
+            ``info[robot]["perception/lidar"]`` (a :class:`navzoo.sensors.LidarScan`).
     """
 
     def __init__(self, env: ParallelEnv, perception: RobotPerception | None = None, images: bool = False,
-                 publish_to_env: bool = True) -> None:
+                 publish_to_env: bool = True, lidar: Any = None) -> None:
         super().__init__(env)
+        if lidar is not None:
+            from navzoo.sensors.lidar import Lidar2D
+
+            if not isinstance(lidar, Lidar2D):
+                raise TypeError(f"lidar must be a navzoo.sensors.Lidar2D or None, got {type(lidar).__name__}")
+        self.lidar = lidar
         self.perception = perception if perception is not None else RobotPerception()
         self.images = bool(images)
         self.publish_to_env = bool(publish_to_env)
@@ -111,6 +120,10 @@ class PerceptionWrapper(_NavWrapper):
                 from navzoo.sensors.render import render_robot_cameras
 
                 info["perception/images"] = render_robot_cameras(nav, i, self.perception.cameras)
+            if self.lidar is not None:
+                from navzoo.sensors.lidar import render_robot_lidar
+
+                info["perception/lidar"] = render_robot_lidar(nav, i, self.lidar)
         return obs, infos
 
     def _features(self, i: int, human_r: float) -> tuple[np.ndarray, np.ndarray]:

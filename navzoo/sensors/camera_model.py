@@ -641,13 +641,14 @@ def occlusion_visible(
         uv: (..., 2) pixel coordinates.
         depth: (...,) keypoint depths (m, camera-frame z, like :meth:`PinholeCamera.project`).
         depth_image: (height, width) metric z-depth image (m) from the same camera.
-        tolerance: Slack (m, >= 0).
+        tolerance: Slack (m, >= 0): a scalar, or an array broadcasting against ``depth`` (e.g. one
+            value per keypoint: joint centres lie inside the limbs, face keypoints on the head's surface).
 
     Returns:
         (...,) bool mask.
     """
-    if tolerance < 0:
-        raise ValueError(f"tolerance must be >= 0, got {tolerance!r}")
+    if np.any(np.asarray(tolerance, dtype=float) < 0) or not np.all(np.isfinite(tolerance)):
+        raise ValueError(f"tolerance must be finite and >= 0, got {tolerance!r}")
     uv = np.asarray(uv, dtype=float)
     depth = np.asarray(depth, dtype=float)
     img = np.asarray(depth_image, dtype=float)

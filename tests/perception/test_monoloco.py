@@ -104,6 +104,11 @@ def test_save_load_round_trip_and_rejections(tmp_path):
     x = np.random.default_rng(0).normal(size=(4, INPUT_DIM)).astype(np.float32)
     np.testing.assert_allclose(est.raw(x), MonolocoEstimator(net).raw(x), atol=1e-6)
     assert est.meta["note"] == "test"
+    save_model(net, tmp_path / "h", half=True)
+    half = load_estimator(tmp_path / "h")
+    assert half.meta["dtype"] == "float16"
+    assert (tmp_path / "h" / "model.pt").stat().st_size < 0.6 * (tmp_path / "m" / "model.pt").stat().st_size
+    np.testing.assert_allclose(half.raw(x), est.raw(x), atol=2e-2, rtol=2e-2)
     with pytest.raises(ValueError, match=r"\(N, 51\)"):
         est.raw(np.zeros((2, 50), np.float32))
     with pytest.raises(FileNotFoundError, match="no Monoloco model"):
@@ -139,8 +144,12 @@ def test_pipeline_and_wrapper_keep_the_ground_truth_format():
 
     env = navzoo.make("navzoo/Lobby-v0", n_humans=6)
     gt_obs, _ = env.reset(seed=3)
+    from navzoo.sensors import Lidar2D
+
     per = RobotPerception(estimator=MonolocoEstimator(MonolocoNet()), seed=0)  # untrained: format only
-    w = PerceptionWrapper(navzoo.make("navzoo/Lobby-v0", n_humans=6), per)
+    with pytest.raises(TypeError, match="Lidar2D"):
+        PerceptionWrapper(navzoo.make("navzoo/Lobby-v0", n_humans=6), per, lidar="yes")
+    w = PerceptionWrapper(navzoo.make("navzoo/Lobby-v0", n_humans=6), per, images=True, lidar=Lidar2D(n_rays=90))
     obs, infos = w.reset(seed=3)
     space = w.observation_space("robot_0")
     assert space.contains(obs["robot_0"]) and space.contains(gt_obs["robot_0"])
@@ -149,6 +158,8 @@ def test_pipeline_and_wrapper_keep_the_ground_truth_format():
         obs, r, te, tr, infos = w.step({"robot_0": np.array([0.3, 0.0], np.float32)})
         assert space.contains(obs["robot_0"])
         assert "perception/detections" in infos["robot_0"]
+        scan, imgs = infos["robot_0"]["perception/lidar"], infos["robot_0"]["perception/images"]
+        assert scan.ranges.shape == (90,) and len(imgs) == 2 and imgs[0].depth.shape == (480, 640)
     nav = w.unwrapped
     assert 0 in nav.perceived_people
     assert per.ms_per_robot_step()["total"] > 0
@@ -173,4 +184,19 @@ def test_baselines_use_perceived_people():
     seen = pol.act(obs, env)["robot_0"]
     np.testing.assert_allclose(seen, truth, atol=1e-6)
     assert not np.allclose(blind, truth, atol=1e-3)
+    env.close()
+
+
+@pytest.mark.parametrize("goal, face", [((3.0, 0.0), {"left_ear", "right_ear"}),
+                                        ((-6.0, 0.0), {"nose", "left_eye", "right_eye", "left_ear", "right_ear"}),
+                                        ((-0.5, 6.0), {"nose", "left_eye", "left_ear"})])
+def test_the_head_hides_the_face_keypoints_turned_away(goal, face):
+    """Seen from behind only the ears, from the front the whole face, from the left side the left half."""
+    env = navzoo.make("navzoo/CircleCrossing-v0", raw=True, n_humans=1)
+    env.reset(seed=0, options={"robot_starts": [[-3.0, 0.0]], "robot_goals": [[3.0, 3.0]], "robot_yaws": [0.0],
+                               "human_starts": [[-0.5, 0.0]], "human_goals": [list(goal)]})
+    cam = PinholeCamera(640, 480, 60.0, mount_z=1.0)
+    o = observe_camera(env, 0, cam, KeypointNoise.none(), np.random.default_rng(0), occlusion="render")
+    seen = {COCO_KEYPOINTS[k] for k in range(5) if o.detected[0, k]}
+    assert seen == face
     env.close()
