@@ -49,6 +49,34 @@ PLAN_DT = 0.1
 # home/lobby/corridor/grocery (4 x 60 s, seed 0): falls per trip 0.20 -> 0.09, success 0.33 -> 0.40
 # (margins 0 / 0.1 / 0.15 compared; docs/pedestrians.md).
 PLAN_MARGIN = 0.1  # m
+# Diffusion plans are paced in time and do not see the bodies that block a person, so a blocked body
+# falls behind its target, up to 2 s x walking pace by the next replan; the controller then lunges at a
+# target 2 m away and falls (corridor, 6 people: first target point p99 2.1 m from the body with
+# diffusion plans against 1.0 m with social-force rollouts, which start from the body and see the others).
+# With diffusion plans the target's current point therefore runs at most LAG_LIMIT_S ahead of the point
+# of the plan nearest to the body (progress_index).
+LAG_LIMIT_S = 0.3
+# Diffusion crowd with physics bodies: the target rollout heads for each plan's point this far ahead.
+DIFFUSION_LOOKAHEAD_S = 0.8
+
+
+def progress_index(k_prev: np.ndarray, k_time: np.ndarray, paths: np.ndarray, pos: np.ndarray, lag: int) -> np.ndarray:
+    """Current target index of each body: one step further than before, as time goes, but at most
+    ``lag`` steps ahead of the point of its path nearest to the body (searched up to ``k_time``).
+
+    Args:
+        k_prev: (H,) previous indices.
+        k_time: (H,) the time-based indices (control steps since each plan).
+        paths: (H, L, 2) target paths, one point per control step.
+        pos: (H, 2) the bodies' positions.
+        lag: the largest lead (control steps) of the target over the body's projection.
+    """
+    L = paths.shape[1]
+    k_time = np.minimum(k_time, L - 1)
+    d = np.linalg.norm(paths - pos[:, None, :], axis=2)
+    d = np.where(np.arange(L)[None, :] <= k_time[:, None], d, np.inf)
+    k_near = np.argmin(d, axis=1)
+    return np.minimum(np.minimum(k_prev + 1, k_time), k_near + lag)
 
 
 class AmpHumans:
@@ -77,6 +105,8 @@ class AmpHumans:
         self.paths = np.zeros((self.n, self.path_len, 2))
         self.t = 0  # control steps since reset
         self.plan_t = np.zeros(self.n, dtype=int)  # control step of each person's last plan
+        self.k_prog = np.zeros(self.n, dtype=int)  # index of each person's current target point
+        self.lag_steps = int(round(LAG_LIMIT_S * CONTROL_HZ)) if env.diffusion is not None else None
         self.fallen = np.zeros(self.n, dtype=bool)
         self.sfm = SocialForceParams()
         model = env.config.crowd_model
@@ -104,12 +134,12 @@ class AmpHumans:
     # ------------------------------------------------------------------ targets
     def target_now(self) -> np.ndarray:
         """(H, 2) the current point of every target trajectory."""
-        k = np.minimum(self.t - self.plan_t, self.path_len - 1)
+        k = np.minimum(self.k_prog, self.path_len - 1)
         return self.paths[np.arange(self.n), k]
 
     def waypoints(self) -> np.ndarray:
         """(H, K, 2) the next K target points, ``WAYPOINT_DT`` apart."""
-        k = (self.t - self.plan_t)[:, None] + self.stride * np.arange(1, N_WAYPOINTS + 1)[None, :]
+        k = self.k_prog[:, None] + self.stride * np.arange(1, N_WAYPOINTS + 1)[None, :]
         return np.take_along_axis(self.paths, np.minimum(k, self.path_len - 1)[..., None], axis=1)
 
     def plan_all(self) -> None:
@@ -128,24 +158,33 @@ class AmpHumans:
         r_pos, r_vel, r_rad = env.pos[robots], env.vel[robots], env.radius[robots]
         tol = env.config.waypoint_tolerance
         steps = int(np.ceil(self.horizon / PLAN_DT))
-        if env.diffusion is not None:  # sampled plans instead of a rule-based rollout
-            self.paths = resample(env.diffusion.plan_positions(env, PLAN_DT, steps), PLAN_DT, 1.0 / CONTROL_HZ,
-                                  self.path_len)
-            self.plan_t[:] = self.t
-            return
+        diffusion = env.diffusion
+        if diffusion is not None:
+            # The sampled plans give the direction and pace (as for kinematic diffusion pedestrians);
+            # social force rolls them out from the bodies, so bodies keep their distance.
+            diffusion.plan_now(env)
+            cap = np.minimum(vmax, v_pref * 1.3)[:, None]
         out = np.empty((self.n, steps + 1, 2))
         out[:, 0] = pos
         for k in range(steps):
-            for j in range(self.n):  # advance along the A* path, as the env does for the crowd
-                path = paths[j]
-                while wp_index[j] < len(path) - 1 and np.linalg.norm(path[wp_index[j]] - pos[j]) < tol:
-                    wp_index[j] += 1
-            wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in range(self.n)])
-            pref = preferred_velocity(pos, wp, goal, v_pref)
+            if diffusion is not None:
+                look = DIFFUSION_LOOKAHEAD_S
+                ahead = diffusion._plans_at(env.sim_time + k * PLAN_DT + look)[:, 0]
+                pref = (ahead - pos) / look
+                speed = np.linalg.norm(pref, axis=1, keepdims=True)
+                pref = np.where(speed > cap, pref / np.maximum(speed, 1e-9) * cap, pref)
+                pref[v_pref == 0.0] = 0.0
+            else:
+                for j in range(self.n):  # advance along the A* path, as the env does for the crowd
+                    path = paths[j]
+                    while wp_index[j] < len(path) - 1 and np.linalg.norm(path[wp_index[j]] - pos[j]) < tol:
+                        wp_index[j] += 1
+                wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in range(self.n)])
+                pref = preferred_velocity(pos, wp, goal, v_pref)
             if env.turn_taking is not None:  # yields in progress shape the rollout ahead
                 pref = env.turn_taking.apply(env.sim_time + k * PLAN_DT, pref)
             o_pos = r_pos + (k * PLAN_DT) * r_vel
-            if env.config.crowd_model == "sfm":
+            if env.config.crowd_model in ("sfm", "diffusion"):
                 vel = social_force_velocities(pos, vel, pref, rad, vmax, PLAN_DT, self.sfm, env.segments,
                                               others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
                                               segment_groups=env.segment_groups)
@@ -158,6 +197,7 @@ class AmpHumans:
             out[:, k + 1] = pos
         self.paths = resample(out, PLAN_DT, 1.0 / CONTROL_HZ, self.path_len)
         self.plan_t[:] = self.t
+        self.k_prog[:] = 0
 
     # ------------------------------------------------------------------ observation / action / step
     def observations(self) -> np.ndarray:
@@ -179,6 +219,11 @@ class AmpHumans:
         """One 30 Hz control step (4 physics steps); ``before_substep`` drives the robots."""
         self.bodies.step(before_substep)
         self.t += 1
+        k_time = self.t - self.plan_t
+        if self.lag_steps is None:
+            self.k_prog = k_time
+        else:
+            self.k_prog = progress_index(self.k_prog, k_time, self.paths, self.planar()[0], self.lag_steps)
 
     def after_step(self, replan: bool) -> None:
         """Falls are sticky; replan when due (or when asked, e.g. after new goals)."""

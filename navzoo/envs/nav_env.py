@@ -70,7 +70,8 @@ class NavEnv(ParallelEnv):
     capped to a norm of 1.
 
     ## Observation space
-    ``Dict`` (or, with ``flat_obs=True``, the same entries flattened in this order into one Box):
+    ``Dict`` (or, with ``flat_obs=True``, the same entries flattened into one Box in the Dict's sorted
+    key order: agents, agents_mask, goal, map, velocity):
 
     | key | shape | content (agent frame: x forward, y left) |
     |---|---|---|

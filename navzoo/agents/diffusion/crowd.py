@@ -343,7 +343,7 @@ class DiffusionCrowd:
         people_now = agents >= R
         amp = getattr(env, "amp", None)
         if amp is not None and amp.n == env.n_humans:  # physics bodies walk their target paths, not the raw plans
-            k = (amp.t - amp.plan_t)[:, None] + np.round(steps[0, :, 0] * 30.0).astype(int)[None, :]
+            k = amp.k_prog[:, None] + np.round(steps[0, :, 0] * 30.0).astype(int)[None, :]
             paths = np.take_along_axis(amp.paths, np.minimum(k, amp.path_len - 1)[..., None], axis=1)  # (H, H', 2)
             fut[people_now] = paths[agents[people_now] - R]
         elif self.plan is not None and self.plan.shape[0] == env.n_humans:
