@@ -66,6 +66,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_diffusion_arguments(tsub.add_parser(
         "diffusion", help="the trajectory diffusion model on ETH/UCY (resumable; see docs/crowd.md)"))
+    from navzoo.agents.robot_train import add_arguments as add_robot_arguments
+
+    add_robot_arguments(tsub.add_parser(
+        "robot", help="the transformer PPO robot policy on station/home/grocery (resumable; see docs/training.md)"))
     from navzoo.perception.train import add_arguments as add_perception_arguments
 
     add_perception_arguments(tsub.add_parser(
@@ -246,6 +250,10 @@ def _train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         from navzoo.agents.diffusion.train import run_cli as run_diffusion
 
         return run_diffusion(args)
+    if args.train_command == "robot":
+        from navzoo.agents.robot_train import run_cli as run_robot
+
+        return run_robot(args, parser.error)
     if args.train_command == "perception":
         from navzoo.perception.train import run_cli as run_perception
 

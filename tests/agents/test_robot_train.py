@@ -1,0 +1,204 @@
+"""``navzoo train robot``: a tiny run, resume, seeding of the mixed vector env, export/load, bad options."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from gymnasium import spaces
+
+import navzoo
+from navzoo.agents import baselines
+from navzoo.agents.robot_train import (
+    add_arguments,
+    export_policy,
+    load_policy,
+    make_mixed_vec_env,
+    register_transformer_ppo,
+    run_cli,
+    shipped_policy_available,
+)
+from navzoo.agents.transformer import transformer_policy_kwargs
+
+TINY = ["--features-dim", "16", "--heads", "2", "--blocks", "1", "--net-arch", "16", "--threads", "1",
+        "--n-epochs", "1"]
+
+
+@pytest.fixture(autouse=True)
+def _one_torch_thread():
+    """One intra-op thread: on a small shared machine OpenMP spinning makes these tests 10x slower."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+def _args(*argv: str) -> argparse.Namespace:
+    return add_arguments(argparse.ArgumentParser()).parse_args(list(argv))
+
+
+def _json_lines(text: str) -> list[dict]:
+    return [json.loads(line) for line in text.splitlines() if line.startswith("{")]
+
+
+def test_tiny_run_writes_checkpoint_and_tensorboard_then_resumes(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert run_cli(_args("--out", str(out), "--total-steps", "96", *TINY)) == 0
+    first = _json_lines(capsys.readouterr().out)
+    assert first[0]["timesteps"] == 96 and first[0]["fps"] > 0  # 3 scenes x 1 copy x 32 steps
+    assert first[-1]["reason"] == "total_steps" and first[-1]["timesteps"] == 96
+    assert (out / "checkpoints" / "step_000000000096.pt").is_file()
+    assert list((out / "tb").glob("transformer_ppo_*/events.out.tfevents.*"))
+    assert (out / "policy" / "policy.pt").is_file() and (out / "policy" / "config.json").is_file()
+
+    assert run_cli(_args("--out", str(out), "--total-steps", "150", *TINY)) == 0
+    second = _json_lines(capsys.readouterr().out)
+    assert second[0] == {"resumed_from": str(out / "checkpoints" / "step_000000000096.pt"), "timesteps": 96}
+    assert second[1]["timesteps"] == 192  # continued from the checkpoint, not from 0
+    assert second[-1]["timesteps"] == 192 and second[-1]["resumed_from"] == 96
+    meta = json.loads((out / "checkpoints" / "step_000000000192.json").read_text())
+    assert meta["num_timesteps"] == 192
+    assert len((out / "metrics.jsonl").read_text().splitlines()) == 2
+
+    with pytest.raises(ValueError, match="was trained with"):
+        run_cli(_args("--out", str(out), "--total-steps", "300", "--features-dim", "32"))
+
+
+def test_time_limit_stops_and_saves(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert run_cli(_args("--out", str(out), "--scenes", "home", "--total-steps", "10000", "--time-limit-s", "0.001",
+                         *TINY)) == 0
+    summary = _json_lines(capsys.readouterr().out)[-1]
+    assert summary["reason"] == "time_limit" and summary["timesteps"] < 10000
+    assert Path(summary["checkpoint"]).is_file()
+
+
+@pytest.mark.parametrize("num_cpus", [0, 2])
+def test_mixed_vec_env_seeds_each_copy(num_cpus):
+    vec = make_mixed_vec_env(["navzoo/Home-v0", "navzoo/Grocery-v0"], n_envs=2, seed=5, num_cpus=num_cpus)
+    try:
+        obs = vec.reset()
+    finally:
+        vec.close()
+    assert obs.shape[0] == 4
+    for i, env_id in enumerate(["navzoo/Home-v0", "navzoo/Grocery-v0"] * 2):  # interleaved scenes
+        o, _ = navzoo.make(env_id, flat_obs=True).reset(seed=5 + i)
+        np.testing.assert_array_equal(obs[i], o["robot_0"])
+
+
+def _tiny_model(vec):
+    from stable_baselines3 import PPO
+
+    kw = transformer_policy_kwargs(features_dim=16, n_heads=2, n_blocks=1, net_arch=(16,))
+    return PPO("MlpPolicy", vec, n_steps=32, batch_size=32, seed=0, device="cpu", policy_kwargs=kw)
+
+
+def test_export_load_round_trip_and_corruption(tmp_path):
+    from navzoo.envs.vector import sb3_vec_env
+
+    vec = sb3_vec_env("navzoo/Home-v0", n_envs=1, seed=0)
+    try:
+        model = _tiny_model(vec)
+        with torch.no_grad():  # make the actions depend on the weights, not only on the zero init
+            for p in model.policy.action_net.parameters():
+                p.normal_(0.0, 0.5)
+        export_policy(model, tmp_path / "p", {"note": "test"})
+        policy = load_policy(tmp_path / "p")
+        env = navzoo.make("navzoo/Home-v0")  # Dict observations, converted to the flat layout
+        obs, _ = env.reset(seed=3)
+        for _ in range(3):
+            flat = spaces.flatten(env.observation_space("robot_0"), obs["robot_0"])[None]
+            expected, _ = model.predict(flat, deterministic=True)
+            got = policy.act(obs, env.unwrapped)
+            np.testing.assert_allclose(got["robot_0"], expected[0], atol=1e-6)
+            obs, *_ = env.step(got)
+        np.testing.assert_allclose(policy.act({"robot_0": flat[0]})["robot_0"], expected[0], atol=1e-6)
+    finally:
+        vec.close()
+    cfg = json.loads((tmp_path / "p" / "config.json").read_text())
+    assert cfg["training"]["note"] == "test" and cfg["observation"]["kind"] == "flat"
+
+    weights = tmp_path / "p" / "policy.pt"
+    data = bytearray(weights.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    weights.write_bytes(bytes(data))
+    with pytest.raises(ValueError, match="sha256"):
+        load_policy(tmp_path / "p")
+    with pytest.raises(FileNotFoundError, match="navzoo train robot"):
+        load_policy(tmp_path / "missing")
+    assert not shipped_policy_available(tmp_path / "missing")
+
+
+def test_export_load_dict_policy(tmp_path):
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from navzoo.envs.wrappers import SingleRobotEnv
+
+    vec = DummyVecEnv([lambda: SingleRobotEnv(navzoo.make("navzoo/Home-v0"))])
+    kw = transformer_policy_kwargs(features_dim=16, n_heads=2, n_blocks=1, net_arch=(16,))
+    model = PPO("MultiInputPolicy", vec, n_steps=32, batch_size=32, seed=0, device="cpu", policy_kwargs=kw)
+    with torch.no_grad():
+        for p in model.policy.action_net.parameters():
+            p.normal_(0.0, 0.5)
+    export_policy(model, tmp_path / "p")
+    policy = load_policy(tmp_path / "p")
+    env = navzoo.make("navzoo/Home-v0")
+    obs, _ = env.reset(seed=1)
+    expected, _ = model.predict({k: v[None] for k, v in obs["robot_0"].items()}, deterministic=True)
+    np.testing.assert_allclose(policy.act(obs)["robot_0"], expected[0], atol=1e-6)
+    flat = spaces.flatten(env.observation_space("robot_0"), obs["robot_0"])  # flat in, Dict for the network
+    np.testing.assert_allclose(policy.act({"robot_0": flat})["robot_0"], expected[0], atol=1e-6)
+    vec.close()
+
+
+def test_register_transformer_ppo(tmp_path, monkeypatch):
+    monkeypatch.setattr(baselines, "_REGISTRY", dict(baselines._REGISTRY))  # undone after the test
+    register_transformer_ppo(tmp_path / "none")
+    assert "transformer-ppo" in baselines.policy_names()
+    with pytest.raises(FileNotFoundError, match="navzoo train robot"):
+        baselines.make_policy("transformer-ppo")
+    from navzoo.envs.vector import sb3_vec_env
+
+    vec = sb3_vec_env("navzoo/Home-v0", n_envs=1, seed=0)
+    try:
+        export_policy(_tiny_model(vec), tmp_path / "p")
+    finally:
+        vec.close()
+    register_transformer_ppo(tmp_path / "p")  # registering again replaces the factory
+    policy = baselines.make_policy("transformer_ppo")
+    env = navzoo.make("navzoo/Home-v0")
+    obs, _ = env.reset(seed=0)
+    act = policy.act(obs, env.unwrapped)["robot_0"]
+    assert act.shape == (2,) and np.isfinite(act).all()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--n-envs", "0"], "--n-envs must be an integer >= 1"),
+    (["--scenes", "mars,home"], r"unknown scene\(s\) \['mars'\]"),
+    (["--batch-size", "1000"], r"--batch-size must be in \[2, n_steps x envs = 32 x 3 = 96\]"),
+    (["--features-dim", "30"], "must be divisible by --heads"),
+    (["--lr", "-1"], "--lr must be in"),
+    (["--num-cpus", "-1"], "--num-cpus must be an integer >= 0"),
+    (["--time-limit-s", "0"], "--time-limit-s must be a number > 0"),
+    (["--n-steps", "1"], "--n-steps must be >= 2"),
+])
+def test_bad_options_are_rejected(tmp_path, argv, message):
+    with pytest.raises(ValueError, match=message):
+        run_cli(_args("--out", str(tmp_path), *argv))
+    seen = []
+    with pytest.raises(ValueError):
+        run_cli(_args("--out", str(tmp_path), *argv), error=seen.append)
+    assert seen and ("must" in seen[0] or "unknown" in seen[0])
+    assert not (tmp_path / "checkpoints").exists()
+
+
+def test_cuda_without_cuda_is_rejected(tmp_path):
+    if torch.cuda.is_available():
+        pytest.skip("CUDA is available here")
+    with pytest.raises(ValueError, match="CUDA is not available"):
+        run_cli(_args("--out", str(tmp_path), "--device", "cuda"))
