@@ -15,7 +15,7 @@ install: $(VENV)/bin/activate
 	$(PY) -m pip install -e .
 
 install-test: install
-	$(PY) -m pip install -e ".[test]"
+	$(PY) -m pip install -e ".[test,ray]"
 
 demo: install
 	$(VENV)/bin/navzoo demo --out runs/demo

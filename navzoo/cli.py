@@ -70,6 +70,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_robot_arguments(tsub.add_parser(
         "robot", help="the transformer PPO robot policy on station/home/grocery (resumable; see docs/training.md)"))
+    from navzoo.rl.train import add_arguments as add_joint_arguments
+
+    add_joint_arguments(tsub.add_parser(
+        "joint", help="robots and pedestrians learning together (or one side frozen) with Ray RLlib; "
+        "--address joins a cluster (see docs/scaling.md)"))
     from navzoo.perception.train import add_arguments as add_perception_arguments
 
     add_perception_arguments(tsub.add_parser(
@@ -254,6 +259,10 @@ def _train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         from navzoo.agents.robot_train import run_cli as run_robot
 
         return run_robot(args, parser.error)
+    if args.train_command == "joint":
+        from navzoo.rl.train import run_cli as run_joint
+
+        return run_joint(args, parser.error)
     if args.train_command == "perception":
         from navzoo.perception.train import run_cli as run_perception
 
