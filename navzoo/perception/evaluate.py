@@ -9,10 +9,10 @@ force), while :class:`~navzoo.perception.pipeline.RobotPerception` runs on it ev
   distance bins;
 * **orientation**: absolute angular error of the estimated body orientation (rad);
 * **detection**: recall = people seen at least once by a camera in a frame / people whose pelvis is
-  in a camera's field of view within ``--range`` m (occluded people count as misses), precision =
+  in a camera's field of view within ``range_m`` (10 m) of the robot (occluded people count as misses), precision =
   detections of real people / all detections (false positives of the detector count against it);
 * **tracking**: CLEAR-MOT (MOTA, MOTP, identity switches) of the confirmed tracks against the people in
-  view, matched within ``--match-m`` m; tracks and people outside every camera's view are left out;
+  view, matched within ``match_m`` (1 m); tracks and people outside every camera's view are left out;
   velocity error of tracks matched to a person (m/s);
 * **cost**: milliseconds per robot step of rendering + detector model, network and tracker (keypoint
   extraction is shared by all robots and reported separately).
