@@ -26,7 +26,6 @@ reward, which is the paper's) trained on a vector env that mixes the station, ho
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import math
 import signal
@@ -46,6 +45,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecCheckNan, VecEnv, VecMonitor
 from torch import nn
 
+from navzoo.agents.amp.checkpoint import sha256_file
 from navzoo.agents.policy import SB3Policy
 from navzoo.agents.transformer import (
     SpatioTemporalExtractor,
@@ -80,14 +80,6 @@ POLICY_VERSION = 1
 TRAIN_COMMAND = "navzoo train robot --out runs/robot (then copy runs/robot/policy to policies/transformer_ppo)"
 _ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU, "gelu": nn.GELU,
                                             "leaky_relu": nn.LeakyReLU}
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _write_json(path: Path, data: Mapping[str, Any]) -> None:
@@ -274,7 +266,7 @@ def export_policy(model: Any, out_dir: str | Path, meta: Mapping[str, Any] | Non
         "net_arch": arch, "activation": activation,
         "share_features_extractor": bool(policy.share_features_extractor),
         "features_extractor": {"class": "SpatioTemporalExtractor", "kwargs": ext.config()},
-        "weights_file": weights.name, "weights_sha256": _sha256(weights),
+        "weights_file": weights.name, "weights_sha256": sha256_file(weights),
         "training": {**({"num_timesteps": int(model.num_timesteps)} if hasattr(model, "num_timesteps") else {}),
                      **dict(meta or {})},
     }
@@ -349,7 +341,7 @@ def load_policy(model_dir: str | Path | None = None, deterministic: bool = True,
     weights = d / Path(str(cfg.get("weights_file", "policy.pt"))).name
     if not weights.is_file():
         raise FileNotFoundError(f"{weights} is missing (named in {cfg_path}); train with `{TRAIN_COMMAND}`")
-    if cfg.get("weights_sha256") != _sha256(weights):
+    if cfg.get("weights_sha256") != sha256_file(weights):
         raise ValueError(f"{weights} does not match the sha256 in {cfg_path} (corrupted or replaced)")
     try:
         ob = cfg["observation"]
@@ -510,7 +502,7 @@ def latest_checkpoint(out: str | Path) -> tuple[Path, dict[str, Any]] | None:
         try:
             meta = json.loads(meta_path.read_text())
             weights = meta_path.with_suffix(".pt")
-            if weights.is_file() and meta.get("sha256") == _sha256(weights):
+            if weights.is_file() and meta.get("sha256") == sha256_file(weights):
                 return weights, meta
         except (json.JSONDecodeError, OSError, AttributeError):
             pass
@@ -540,7 +532,7 @@ def _save_checkpoint(model: Any, args: TrainArgs, keep: int) -> Path:
     torch.save({"policy": model.policy.state_dict(), "optimizer": model.policy.optimizer.state_dict()}, tmp)
     tmp.replace(weights)
     _write_json(weights.with_suffix(".json"), {
-        "num_timesteps": n, "n_updates": int(model._n_updates), "sha256": _sha256(weights),
+        "num_timesteps": n, "n_updates": int(model._n_updates), "sha256": sha256_file(weights),
         "model": args.model_options(), "scenes": list(args.scenes), "num_envs": args.num_envs,
         "saved_at": time.strftime("%Y-%m-%dT%H:%M:%S"),
     })

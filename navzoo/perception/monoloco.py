@@ -23,7 +23,6 @@ dropout, linear output), 256 wide. Training data come from navzoo scenes
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from dataclasses import asdict, dataclass
@@ -33,6 +32,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from navzoo.agents.amp.checkpoint import sha256_file
 from navzoo.sensors.camera_model import NUM_KEYPOINTS, PinholeCamera
 
 __all__ = [
@@ -228,14 +228,6 @@ def decode_outputs(out: np.ndarray, camera: PinholeCamera, robot_pose) -> Monolo
 
 # ---------------------------------------------------------------------- weights
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def save_model(net: MonolocoNet, out_dir: str | Path, meta: dict | None = None, half: bool = False) -> Path:
     """Write ``model.pt`` (state_dict tensors only) and ``config.json`` (architecture, sha256, ``meta``).
 
@@ -252,7 +244,7 @@ def save_model(net: MonolocoNet, out_dir: str | Path, meta: dict | None = None, 
     torch.save(state, tmp)
     tmp.replace(weights)
     config = {"architecture": asdict(net.config), "input_dim": INPUT_DIM, "output_dim": OUTPUT_DIM,
-              "sha256": _sha256(weights), "dtype": "float16" if half else "float32", **(meta or {})}
+              "sha256": sha256_file(weights), "dtype": "float16" if half else "float32", **(meta or {})}
     (out / "config.json").write_text(json.dumps(config, indent=2) + "\n")
     return weights
 
@@ -273,7 +265,7 @@ def load_estimator(model_dir: str | Path | None = None, device: str = "cpu") -> 
         meta = json.loads(cfg_path.read_text())
     except json.JSONDecodeError as err:
         raise ValueError(f"{cfg_path} is not valid JSON: {err}") from err
-    if meta.get("sha256") != _sha256(w):
+    if meta.get("sha256") != sha256_file(w):
         raise ValueError(f"{w} does not match the sha256 in {cfg_path} (corrupted or replaced)")
     try:
         net = MonolocoNet(MonolocoConfig(**meta.get("architecture", {})))
