@@ -115,6 +115,29 @@ def test_bad_arguments_are_clear():
         ce.evaluate(scenes=["atlantis"], seconds=1.0)
     with pytest.raises(ValueError, match="unknown reliability row"):
         ce.reliability(rows=["orca+amp"], scenes=["lobby"], seconds=1.0)
+    with pytest.raises(ValueError, match="unknown reliability row"):
+        ce.evaluate(rows=["orca+amp"], scenes=["lobby"], seconds=1.0)
+
+
+def test_each_reliability_row_is_saved_as_it_finishes(tmp_path, monkeypatch):
+    """A long run stopped after some rows keeps them in --out (only the chosen rows run)."""
+    calls = []
+
+    def fake_following(scenes, seconds, seed, policy_dir, **kw):
+        calls.append(kw["crowd_model"])
+        if len(calls) == 2:
+            raise KeyboardInterrupt  # stopped during the second row
+        return {"success_rate": 0.5, "fall_rate": 0.0, "trips": 2}, None
+
+    monkeypatch.setattr(ce, "realism", lambda *a, **k: {})
+    monkeypatch.setattr(ce.pedestrians, "following", fake_following)
+    out = tmp_path / "crowd.json"
+    with pytest.raises(KeyboardInterrupt):
+        ce.evaluate(scenes=["lobby"], seconds=1.0, rows=["sfm+kinematic", "diffusion+kinematic"], with_cost=False,
+                    out=out)
+    saved = json.loads(out.read_text())
+    assert saved["partial"] is True and list(saved["reliability"]) == ["sfm+kinematic"]
+    assert calls == ["sfm", "diffusion"]
 
 
 def test_cli_tiny_run_prints_json(capsys, tmp_path):

@@ -394,10 +394,10 @@ def realism(crowds: Sequence[str] = DEFAULT_CROWDS, scenes: Sequence[str] = pede
 # ---------------------------------------------------------------------------------------- reliability
 def reliability(rows: Sequence[str] = tuple(RELIABILITY_ROWS), scenes: Sequence[str] = pedestrians.SCENES,
                 seconds: float = 200.0, seed: int = 0, workers: int = 1, policy_dir: str | None = None,
-                people: Sequence[int] | None = None) -> dict[str, Any]:
+                people: Sequence[int] | None = None, on_row=None) -> dict[str, Any]:
     """The reliability table: :func:`navzoo.benchmark.pedestrians.following` for each row of
     :data:`RELIABILITY_ROWS` named in ``rows`` (``people`` per scene, default 3-15 spread over
-    ``scenes``; ``seconds`` each)."""
+    ``scenes``; ``seconds`` each). ``on_row(rows_so_far)`` is called after each row (to save them)."""
     scenes = _check_scenes(scenes)
     bad = [r for r in rows if r not in RELIABILITY_ROWS]
     if bad:
@@ -418,6 +418,8 @@ def reliability(rows: Sequence[str] = tuple(RELIABILITY_ROWS), scenes: Sequence[
         print(f"reliability {name}: success {metrics['success_rate']:.3f}, fall {metrics['fall_rate']:.3f}, "
               f"trips {metrics['trips']}, {metrics['wall_s']:.0f} s", file=sys.stderr, flush=True)
         out[name] = metrics
+        if on_row is not None:
+            on_row(out)
     return out
 
 
@@ -541,10 +543,13 @@ def _machine() -> str:
 def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence[str] = DEFAULT_CROWDS,
              amp: bool = True, with_cost: bool = True, workers: int = 1, seed: int = 0,
              scenes: Sequence[str] | None = None, people: int | None = None, data_dir: str | Path | None = None,
-             policy_dir: str | None = None, out: str | Path | None = None) -> dict[str, Any]:
+             policy_dir: str | None = None, out: str | Path | None = None,
+             rows: Sequence[str] | None = None) -> dict[str, Any]:
     """Realism, reliability and cost (see the module doc). ``quick``: 2 scenes x 20 s, fewer timing
     repeats. ``people`` fixes the number of pedestrians in every scene (default 3-15 over the scenes).
-    With ``out`` the result so far is written there after each part (``"partial": true`` until done)."""
+    ``rows``: the reliability rows to run (default all of :data:`RELIABILITY_ROWS`).
+    With ``out`` the result so far is written there after each part and each reliability row
+    (``"partial": true`` until done)."""
     t0 = time.time()
     crowds = _check_crowds(crowds)
     scenes = _check_scenes(scenes if scenes is not None else (QUICK_SCENES if quick else pedestrians.SCENES))
@@ -567,8 +572,17 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
     counts = [people] * len(scenes) if people is not None else None
     result["realism"] = realism(crowds, scenes, seconds, seed, workers, counts, data_dir)
     save(True)
-    rows = [r for r in RELIABILITY_ROWS if amp or RELIABILITY_ROWS[r][1] != "amp"]
-    result["reliability"] = reliability(rows, scenes, seconds, seed, workers, policy_dir, counts)
+    rows = list(RELIABILITY_ROWS if rows is None else rows)
+    bad = [r for r in rows if r not in RELIABILITY_ROWS]
+    if bad:
+        raise ValueError(f"unknown reliability row(s) {bad}; choose from {', '.join(RELIABILITY_ROWS)}")
+    rows = [r for r in rows if amp or RELIABILITY_ROWS[r][1] != "amp"]
+
+    def row_done(so_far: dict[str, Any]) -> None:  # a long run keeps every finished row
+        result["reliability"] = dict(so_far)
+        save(True)
+
+    result["reliability"] = reliability(rows, scenes, seconds, seed, workers, policy_dir, counts, row_done)
     result["reliability_paper"] = PAPER_RELIABILITY
     save(True)
     if with_cost:
@@ -669,6 +683,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="pedestrians in every scene (default 3-15 spread over the scenes)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-amp", action="store_true", help="skip the AMP rows of the reliability table")
+    parser.add_argument("--rows", type=_names, default=None,
+                        help=f"reliability rows to run, comma-separated, of {', '.join(RELIABILITY_ROWS)} (default all)")
     parser.add_argument("--no-cost", action="store_true", help="skip the replan and step timings")
     parser.add_argument("--data", default=None, help="ETH/UCY folder (default: the shared data folder)")
     parser.add_argument("--policy", default=None, help="exported AMP policy folder (default: the shipped one)")
@@ -682,7 +698,7 @@ def run_cli(args: argparse.Namespace) -> int:
         return 0
     result = evaluate(args.quick, args.seconds, args.crowds, amp=not args.no_amp, with_cost=not args.no_cost,
                       workers=args.workers, seed=args.seed, scenes=args.scenes, people=args.people,
-                      data_dir=args.data, policy_dir=args.policy, out=args.out)
+                      data_dir=args.data, policy_dir=args.policy, out=args.out, rows=args.rows)
     print(json.dumps(result, indent=None if args.json else 2, default=_json_default))
     return 0
 
