@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from navzoo.perception.monoloco import bearing_of, keypoint_features, wrap_angle
-from navzoo.perception.pipeline import OCCLUSION_TOLERANCE, observe_camera, people_ground_truth
+from navzoo.perception.pipeline import people_ground_truth, visible_keypoints
 from navzoo.sensors.camera_model import KeypointNoise, PinholeCamera, default_robot_cameras
 
 __all__ = ["EVAL_SCENES", "TRAIN_SCENES", "generate", "generate_scene", "load_dataset", "save_dataset"]
@@ -77,24 +77,18 @@ def generate_scene(scene: str, steps: int, seed: int, every: int = 2, draws: int
             if step % every == 0 and nav.alive[0]:
                 gt = people_ground_truth(nav)
                 for cam in cams:
-                    o = observe_camera(nav, 0, cam, KeypointNoise.none(), rng, gt, "render", occlusion_downscale)
-                    # Re-run the detector on the true keypoints `draws` times (the rendering is the slow part).
-                    if len(o.visible_people) == 0:
+                    # The rendering is the slow part: the detector runs `draws` times on one occlusion test.
+                    v = visible_keypoints(nav, 0, cam, gt, "render", occlusion_downscale)
+                    seen = v.visible.any(axis=1)
+                    if not seen.any():
                         continue
-                    rows = np.searchsorted(gt["index"], o.visible_people)
-                    uv, depth = cam.project(gt["keypoints"][rows], o.robot_pose)
-                    vis = cam.in_image(uv, depth)
-                    if o.depth_image is not None:
-                        from navzoo.sensors.camera_model import occlusion_visible
-
-                        scale = np.array([o.depth_image.shape[1] / cam.width, o.depth_image.shape[0] / cam.height])
-                        vis &= occlusion_visible(uv * scale, depth, o.depth_image, tolerance=OCCLUSION_TOLERANCE)
+                    people, uv, depth, vis = v.people[seen], v.uv[seen], v.depth[seen], v.visible[seen]
                     for _ in range(draws):
                         det = noise.apply(uv, depth, vis, rng, image_size=cam)
                         keep = det.person_detected
                         if not keep.any():
                             continue
-                        tg = sample_targets(gt, o.visible_people[keep], cam, o.robot_pose)
+                        tg = sample_targets(gt, people[keep], cam, v.robot_pose)
                         ok = tg["person_depth"] > 0.3
                         out["features"].append(keypoint_features(det.uv[keep], det.detected[keep], cam)[ok])
                         for k in ("distance", "xi", "eta", "allocentric", "person_depth"):

@@ -27,7 +27,7 @@ import time
 from collections import defaultdict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -45,8 +45,8 @@ from navzoo.sensors.camera_model import (
 if TYPE_CHECKING:
     from navzoo.envs.nav_env import NavEnv
 
-__all__ = ["CameraObservation", "PerceptionFrame", "RobotPerception", "human_body_ids", "observe_camera",
-           "people_ground_truth"]
+__all__ = ["CameraObservation", "PerceptionFrame", "RobotPerception", "VisibleKeypoints", "human_body_ids",
+           "observe_camera", "people_ground_truth", "visible_keypoints"]
 
 OCCLUSION_MODES = ("render", "none")
 # Depth slack of the occlusion test per COCO keypoint (m): face keypoints lie on the head's surface, so
@@ -117,25 +117,34 @@ def _scaled(camera: PinholeCamera, downscale: int) -> PinholeCamera:
     return replace(camera, width=max(8, camera.width // downscale), height=max(6, camera.height // downscale))
 
 
-def observe_camera(env: NavEnv, robot_index: int, camera: PinholeCamera, noise: KeypointNoise,
-                   rng: np.random.Generator, gt: dict[str, np.ndarray] | None = None,
-                   occlusion: str = "render", occlusion_downscale: int = 4, max_range: float = 20.0
-                   ) -> CameraObservation:
-    """Simulate the keypoint detector of one robot camera (steps 1-3 of the module docstring).
+class VisibleKeypoints(NamedTuple):
+    """The true keypoints of the people near a robot, as one camera sees them (before detector noise).
 
-    Args:
-        env: The env (its current state).
-        robot_index: Which robot carries the camera.
-        camera: The camera.
-        noise: Detector model.
-        rng: Randomness of the detector.
-        gt: :func:`people_ground_truth` of this step (computed when None).
-        occlusion: ``"render"`` (depth-image test) or ``"none"`` (image bounds only).
-        occlusion_downscale: Resolution divisor of the rendered depth image.
-        max_range: People farther than this (m) from the robot are not considered at all.
+    Attributes:
+        robot_pose: ``(x, y, yaw)`` of the robot.
+        people: (N,) pedestrian indices of the people within range.
+        uv: (N, 17, 2) projected keypoints (pixels).
+        depth: (N, 17) keypoint depths (m).
+        visible: (N, 17) inside the image and not occluded.
+        in_view: pedestrian indices whose pelvis projects inside the image.
+        depth_image: the rendered occlusion depth image (None with ``occlusion="none"`` or nobody in the image).
+    """
 
-    Returns:
-        :class:`CameraObservation`.
+    robot_pose: np.ndarray
+    people: np.ndarray
+    uv: np.ndarray
+    depth: np.ndarray
+    visible: np.ndarray
+    in_view: np.ndarray
+    depth_image: np.ndarray | None
+
+
+def visible_keypoints(env: NavEnv, robot_index: int, camera: PinholeCamera, gt: dict[str, np.ndarray] | None = None,
+                      occlusion: str = "render", occlusion_downscale: int = 4, max_range: float = 20.0
+                      ) -> VisibleKeypoints:
+    """Steps 1-2 of the module docstring for one camera: project the keypoints, test occlusion.
+
+    Arguments as :func:`observe_camera`.
     """
     if occlusion not in OCCLUSION_MODES:
         raise ValueError(f"occlusion must be one of {OCCLUSION_MODES}, got {occlusion!r}")
@@ -159,12 +168,35 @@ def observe_camera(env: NavEnv, robot_index: int, camera: PinholeCamera, noise: 
         visible = inside
     pelvis_uv, pelvis_d = camera.project(gt["pelvis"][near], pose) if len(kp) else (np.zeros((0, 2)), np.zeros(0))
     in_view = people[camera.in_image(pelvis_uv, pelvis_d)]
-    det = noise.detect(uv, depth, visible, rng, camera)
-    n_real = len(kp)
-    person = np.concatenate([people, -np.ones(len(det.uv) - n_real, dtype=int)])
+    return VisibleKeypoints(pose, people, uv, depth, visible, in_view, depth_image)
+
+
+def observe_camera(env: NavEnv, robot_index: int, camera: PinholeCamera, noise: KeypointNoise,
+                   rng: np.random.Generator, gt: dict[str, np.ndarray] | None = None,
+                   occlusion: str = "render", occlusion_downscale: int = 4, max_range: float = 20.0
+                   ) -> CameraObservation:
+    """Simulate the keypoint detector of one robot camera (steps 1-3 of the module docstring).
+
+    Args:
+        env: The env (its current state).
+        robot_index: Which robot carries the camera.
+        camera: The camera.
+        noise: Detector model.
+        rng: Randomness of the detector.
+        gt: :func:`people_ground_truth` of this step (computed when None).
+        occlusion: ``"render"`` (depth-image test) or ``"none"`` (image bounds only).
+        occlusion_downscale: Resolution divisor of the rendered depth image.
+        max_range: People farther than this (m) from the robot are not considered at all.
+
+    Returns:
+        :class:`CameraObservation`.
+    """
+    v = visible_keypoints(env, robot_index, camera, gt, occlusion, occlusion_downscale, max_range)
+    det = noise.detect(v.uv, v.depth, v.visible, rng, camera)
+    person = np.concatenate([v.people, -np.ones(len(det.uv) - len(v.people), dtype=int)])
     keep = det.person_detected
-    return CameraObservation(camera, pose, det.uv[keep], det.detected[keep], det.confidence[keep], person[keep],
-                             people[visible.any(axis=1)], in_view, depth_image)
+    return CameraObservation(camera, v.robot_pose, det.uv[keep], det.detected[keep], det.confidence[keep],
+                             person[keep], v.people[v.visible.any(axis=1)], v.in_view, v.depth_image)
 
 
 @dataclass
