@@ -654,7 +654,7 @@ def train(args: TrainArgs) -> dict[str, Any]:
             summary["checkpoint"] = str(_save_checkpoint(model, args, args.keep))
         meta = {"scenes": list(args.scenes), "n_steps": args.n_steps, "n_epochs": args.n_epochs,
                 "batch_size": args.batch_size, "lr": args.lr, "gamma": args.gamma, "seed": args.seed,
-                "trained_with": "navzoo train robot"}
+                "env_overrides": args.extra, "trained_with": "navzoo train robot"}
         summary["policy"] = str(export_policy(model, out / "policy", meta).parent)
         summary["timesteps"] = int(model.num_timesteps)
         summary["reason"] = stop["reason"] or "total_steps"
@@ -689,6 +689,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--n-envs", type=int, default=d.n_envs, help="env copies per scene")
     p.add_argument("--num-cpus", type=int, default=d.num_cpus, help="worker processes for the copies (0: none)")
     p.add_argument("--robots-per-env", type=int, default=d.robots_per_env, help="robots per env copy")
+    p.add_argument("--kinematics", default=None, choices=["diff_drive", "holonomic"],
+                   help="robot kinematics for every scene (default: each scene's own; the CrowdNav presets are "
+                        "holonomic, the others diff_drive)")
     p.add_argument("--total-steps", type=int, default=d.total_steps, help="total robot steps to reach (with resumed)")
     p.add_argument("--n-steps", type=int, default=d.n_steps, help="rollout length per vector entry (paper: 32)")
     p.add_argument("--n-epochs", type=int, default=d.n_epochs, help="PPO epochs per rollout (paper: 6)")
@@ -723,7 +726,8 @@ def run_cli(args: argparse.Namespace, error: Callable[[str], Any] | None = None)
             n_epochs=args.n_epochs, batch_size=args.batch_size, lr=args.lr, gamma=args.gamma,
             ent_coef=args.ent_coef, features_dim=args.features_dim, heads=args.heads, blocks=args.blocks,
             net_arch=tuple(args.net_arch), device=args.device, seed=args.seed, threads=args.threads,
-            save_every=args.save_every, keep=args.keep, time_limit_s=args.time_limit_s)
+            save_every=args.save_every, keep=args.keep, time_limit_s=args.time_limit_s,
+            extra={"robot": {"kinematics": args.kinematics}} if getattr(args, "kinematics", None) else {})
         check_resume(targs)
     except ValueError as exc:
         if error is not None:

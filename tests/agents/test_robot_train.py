@@ -77,6 +77,21 @@ def test_time_limit_stops_and_saves(tmp_path, capsys):
     assert Path(summary["checkpoint"]).is_file()
 
 
+def test_kinematics_option_sets_the_robot_of_every_copy(tmp_path, capsys):
+    out = tmp_path / "run"
+    args = _args("--out", str(out), "--scenes", "navzoo/CircleCrossing-v0", "--kinematics", "diff_drive",
+                 "--total-steps", "32", *TINY)
+    assert run_cli(args) == 0
+    cfg = json.loads((out / "policy" / "config.json").read_text())
+    assert cfg["training"]["env_overrides"] == {"robot": {"kinematics": "diff_drive"}}
+    from navzoo.envs.registry import make_raw
+
+    env = make_raw("navzoo/CircleCrossing-v0", **cfg["training"]["env_overrides"])
+    assert env.config.robot.kinematics == "diff_drive" and env.config.robot.max_accel == 100.0  # preset kept
+    with pytest.raises(SystemExit):
+        _args("--kinematics", "tracked")
+
+
 @pytest.mark.parametrize("num_cpus", [0, 2])
 def test_mixed_vec_env_seeds_each_copy(num_cpus):
     vec = make_mixed_vec_env(["navzoo/Home-v0", "navzoo/Grocery-v0"], n_envs=2, seed=5, num_cpus=num_cpus)
