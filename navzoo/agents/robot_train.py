@@ -80,6 +80,9 @@ POLICY_VERSION = 1
 TRAIN_COMMAND = "navzoo train robot --out runs/robot (then copy runs/robot/policy to policies/transformer_ppo)"
 _ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU, "gelu": nn.GELU,
                                             "leaky_relu": nn.LeakyReLU}
+FORWARD_ONLY_ACTIONS = spaces.Box(np.array([0.0, -1.0], np.float32), np.array([1.0, 1.0], np.float32), dtype=np.float32)
+_DTYPES = {"float32": torch.float32, "float16": torch.float16}
+_ALIASED = ("pi_features_extractor.", "vf_features_extractor.")
 
 
 def _write_json(path: Path, data: Mapping[str, Any]) -> None:
@@ -222,8 +225,33 @@ def make_mixed_vec_env(env_ids: Sequence[str] = TRAIN_SCENES, n_envs: int = 1, s
 # Exported policies: state dict + JSON config, loaded without unpickling.
 
 
-def export_policy(model: Any, out_dir: str | Path, meta: Mapping[str, Any] | None = None) -> Path:
+def _weights_to_save(policy: Any, dtype: str) -> dict[str, torch.Tensor]:
+    """The state dict without SB3's aliases of a shared extractor (``pi_``/``vf_features_extractor``), cast."""
+    if dtype not in _DTYPES:
+        raise ValueError(f"weights dtype must be one of {sorted(_DTYPES)}, got {dtype!r}")
+    state = policy.state_dict()
+    if policy.share_features_extractor:
+        state = {k: v for k, v in state.items() if not k.startswith(_ALIASED)}
+    return {k: (v.detach().cpu().to(_DTYPES[dtype]) if v.is_floating_point() else v.detach().cpu()).clone()
+            for k, v in state.items()}
+
+
+def _restore_aliases(state: dict[str, torch.Tensor], shared: bool) -> dict[str, torch.Tensor]:
+    """Add back the aliased keys of a shared extractor (older exports hold them already) and cast to float32."""
+    state = {k: (v.float() if v.is_floating_point() else v) for k, v in state.items()}
+    if shared:
+        for k, v in list(state.items()):
+            if k.startswith("features_extractor."):
+                for alias in _ALIASED:
+                    state.setdefault(alias + k[len("features_extractor."):], v)
+    return state
+
+
+def export_policy(model: Any, out_dir: str | Path, meta: Mapping[str, Any] | None = None,
+                  dtype: str = "float32") -> Path:
     """Write ``policy.pt`` (the actor-critic's state dict, tensors only) and ``config.json``.
+
+    A shared features extractor is stored once (SB3's state dict lists it three times).
 
     Args:
         model: a trained SB3 PPO (or its ``policy``) whose features extractor is
@@ -231,6 +259,7 @@ def export_policy(model: Any, out_dir: str | Path, meta: Mapping[str, Any] | Non
         out_dir: the folder (created).
         meta: JSON-able entries for ``config.json["training"]`` (scenes, hyperparameters, ...; the
             model's ``num_timesteps`` is added).
+        dtype: ``"float32"`` or ``"float16"`` (half the size; loaded back as float32).
 
     Returns:
         The path of ``config.json``.
@@ -256,7 +285,7 @@ def export_policy(model: Any, out_dir: str | Path, meta: Mapping[str, Any] | Non
     out.mkdir(parents=True, exist_ok=True)
     weights = out / "policy.pt"
     tmp = out / "policy.pt.tmp"
-    torch.save({k: v.detach().cpu().clone() for k, v in policy.state_dict().items()}, tmp)
+    torch.save(_weights_to_save(policy, dtype), tmp)
     tmp.replace(weights)
     config = {
         "format": POLICY_FORMAT, "version": POLICY_VERSION,
@@ -266,12 +295,22 @@ def export_policy(model: Any, out_dir: str | Path, meta: Mapping[str, Any] | Non
         "net_arch": arch, "activation": activation,
         "share_features_extractor": bool(policy.share_features_extractor),
         "features_extractor": {"class": "SpatioTemporalExtractor", "kwargs": ext.config()},
-        "weights_file": weights.name, "weights_sha256": sha256_file(weights),
+        "weights_file": weights.name, "weights_sha256": sha256_file(weights), "weights_dtype": dtype,
         "training": {**({"num_timesteps": int(model.num_timesteps)} if hasattr(model, "num_timesteps") else {}),
                      **dict(meta or {})},
     }
     path = out / "config.json"
     _write_json(path, config)
+    return path
+
+
+def convert_policy(src_dir: str | Path, dst_dir: str | Path, dtype: str = "float16",
+                   meta: Mapping[str, Any] | None = None) -> Path:
+    """Re-export an exported policy (e.g. ``runs/robot/policy``) to ``dst_dir`` in ``dtype``, adding ``meta``
+    to its ``training`` record; the shipped policies are made this way (float16)."""
+    src_cfg = json.loads((Path(src_dir) / "config.json").read_text())
+    policy = load_policy(src_dir).model
+    path = export_policy(policy, dst_dir, {**src_cfg.get("training", {}), **dict(meta or {})}, dtype=dtype)
     return path
 
 
@@ -364,7 +403,7 @@ def load_policy(model_dir: str | Path | None = None, deterministic: bool = True,
         raise ValueError(f"{cfg_path} does not describe a transformer-ppo policy: {err!r}") from err
     try:
         state = torch.load(weights, map_location="cpu", weights_only=True)
-        policy.load_state_dict(state)
+        policy.load_state_dict(_restore_aliases(state, bool(cfg["share_features_extractor"])))
     except (RuntimeError, TypeError, AttributeError) as err:
         raise ValueError(f"{weights} does not fit the architecture in {cfg_path}: {err}") from err
     policy = policy.to(device)
@@ -411,6 +450,8 @@ class TrainArgs:
     lr: float = 3e-4
     gamma: float = 0.99
     ent_coef: float = 0.0
+    target_kl: float | None = None
+    forward_only: bool = False  # policy's speed command in [0, 1] (no reversing; diff-drive robots only)
     features_dim: int = 128
     heads: int = 4
     blocks: int = 3
@@ -445,6 +486,8 @@ class TrainArgs:
                 raise ValueError(f"--{name} must be in ({lo}, {hi}], got {v!r}")
         if not (math.isfinite(self.ent_coef) and self.ent_coef >= 0):
             raise ValueError(f"--ent-coef must be a finite number >= 0, got {self.ent_coef!r}")
+        if self.target_kl is not None and not (math.isfinite(self.target_kl) and self.target_kl > 0):
+            raise ValueError(f"--target-kl must be a number > 0, got {self.target_kl!r}")
         if self.features_dim % self.heads:
             raise ValueError(f"--features-dim ({self.features_dim}) must be divisible by --heads ({self.heads})")
         if not self.net_arch or any(w < 1 for w in self.net_arch):
@@ -463,6 +506,13 @@ class TrainArgs:
         if unknown or not self.scenes:
             raise ValueError(f"unknown scene(s) {unknown or '(none given)'}; use scene names or ids such as "
                              f"{', '.join(_scene_names())}")
+        if self.forward_only:
+            kin = (self.extra.get("robot") or {}).get("kinematics")
+            holo = [s for s in self.scenes
+                    if (kin or getattr(SCENARIOS[s].get("robot"), "kinematics", "diff_drive")) != "diff_drive"]
+            if holo:
+                raise ValueError(f"--forward-only needs diff-drive robots; {holo} have holonomic ones "
+                                 "(add --kinematics diff_drive)")
 
     @property
     def num_envs(self) -> int:
@@ -621,6 +671,8 @@ def train(args: TrainArgs) -> dict[str, Any]:
         summary["checkpoint"] = str(found[0]) if found else None
     vec = make_mixed_vec_env(args.scenes, args.n_envs, seed=args.seed + done, num_cpus=args.num_cpus,
                              robots_per_env=args.robots_per_env, **args.extra)
+    if args.forward_only:  # SB3 clips the policy's actions to this box (speed >= 0) before the env sees them
+        vec.action_space = FORWARD_ONLY_ACTIONS
     with warnings.catch_warnings():  # SuperSuit's vector env has no get_attr: SB3 warns, then uses None
         warnings.filterwarnings("ignore", message="The `render_mode` attribute is not defined")
         vec = VecCheckNan(VecMonitor(vec), raise_exception=True)
@@ -632,7 +684,8 @@ def train(args: TrainArgs) -> dict[str, Any]:
                                            net_arch=args.net_arch,
                                            k_neighbors=args.extra.get("k_neighbors"), history=args.extra.get("history"))
         model = PPO("MlpPolicy", vec, n_steps=args.n_steps, n_epochs=args.n_epochs, batch_size=args.batch_size,
-                    learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, policy_kwargs=kwargs,
+                    learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, target_kl=args.target_kl,
+                    policy_kwargs=kwargs,
                     tensorboard_log=str(out / "tb"), device=args.device, seed=args.seed + done, verbose=0)
         if found:
             state = torch.load(found[0], map_location=model.device, weights_only=True)
@@ -654,7 +707,8 @@ def train(args: TrainArgs) -> dict[str, Any]:
             summary["checkpoint"] = str(_save_checkpoint(model, args, args.keep))
         meta = {"scenes": list(args.scenes), "n_steps": args.n_steps, "n_epochs": args.n_epochs,
                 "batch_size": args.batch_size, "lr": args.lr, "gamma": args.gamma, "seed": args.seed,
-                "env_overrides": args.extra, "trained_with": "navzoo train robot"}
+                "env_overrides": args.extra, "forward_only": args.forward_only, "target_kl": args.target_kl,
+                "trained_with": "navzoo train robot"}
         summary["policy"] = str(export_policy(model, out / "policy", meta).parent)
         summary["timesteps"] = int(model.num_timesteps)
         summary["reason"] = stop["reason"] or "total_steps"
@@ -700,6 +754,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--lr", type=float, default=d.lr, help="Adam learning rate")
     p.add_argument("--gamma", type=float, default=d.gamma)
     p.add_argument("--ent-coef", type=float, default=d.ent_coef)
+    p.add_argument("--target-kl", type=float, default=None, help="stop an update's epochs early past this KL (SB3)")
+    p.add_argument("--forward-only", action="store_true",
+                   help="diff-drive policies command speeds in [0, max] only (no reversing), as CrowdNav's unicycle")
     p.add_argument("--features-dim", type=int, default=d.features_dim, help="transformer width D (= features)")
     p.add_argument("--heads", type=int, default=d.heads, help="attention heads")
     p.add_argument("--blocks", type=int, default=d.blocks, help="factorised spatio-temporal blocks (paper: 3)")
@@ -724,7 +781,8 @@ def run_cli(args: argparse.Namespace, error: Callable[[str], Any] | None = None)
             out=args.out, scenes=parse_scenes(args.scenes), n_envs=args.n_envs, num_cpus=args.num_cpus,
             robots_per_env=args.robots_per_env, total_steps=args.total_steps, n_steps=args.n_steps,
             n_epochs=args.n_epochs, batch_size=args.batch_size, lr=args.lr, gamma=args.gamma,
-            ent_coef=args.ent_coef, features_dim=args.features_dim, heads=args.heads, blocks=args.blocks,
+            ent_coef=args.ent_coef, target_kl=getattr(args, "target_kl", None),
+            forward_only=bool(getattr(args, "forward_only", False)), features_dim=args.features_dim, heads=args.heads, blocks=args.blocks,
             net_arch=tuple(args.net_arch), device=args.device, seed=args.seed, threads=args.threads,
             save_every=args.save_every, keep=args.keep, time_limit_s=args.time_limit_s,
             extra={"robot": {"kinematics": args.kinematics}} if getattr(args, "kinematics", None) else {})

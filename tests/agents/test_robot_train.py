@@ -20,6 +20,7 @@ from navzoo.agents.robot_train import (
     make_mixed_vec_env,
     register_transformer_ppo,
     run_cli,
+    convert_policy,
     shipped_policy_available,
 )
 from navzoo.agents.transformer import transformer_policy_kwargs
@@ -90,6 +91,34 @@ def test_kinematics_option_sets_the_robot_of_every_copy(tmp_path, capsys):
     assert env.config.robot.kinematics == "diff_drive" and env.config.robot.max_accel == 100.0  # preset kept
     with pytest.raises(SystemExit):
         _args("--kinematics", "tracked")
+
+
+def test_forward_only_policy_never_reverses(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert run_cli(_args("--out", str(out), "--scenes", "home", "--forward-only", "--target-kl", "0.05",
+                         "--total-steps", "32", *TINY)) == 0
+    cfg = json.loads((out / "policy" / "config.json").read_text())
+    assert cfg["action"]["low"] == [0.0, -1.0] and cfg["training"]["forward_only"] is True
+    policy = load_policy(out / "policy", deterministic=False)
+    obs = np.random.default_rng(0).normal(size=(256, policy.model.observation_space.shape[0])).astype(np.float32)
+    acts = policy._predict(obs)
+    assert acts[:, 0].min() >= 0.0 and acts[:, 1].min() < 0.0  # speed clipped at 0, turning both ways
+    with pytest.raises(ValueError, match="--forward-only needs diff-drive"):
+        run_cli(_args("--out", str(tmp_path / "h"), "--scenes", "navzoo/CircleCrossing-v0", "--forward-only"))
+
+
+def test_float16_export_is_half_the_size_and_acts_alike(tmp_path):
+    out = tmp_path / "run"
+    assert run_cli(_args("--out", str(out), "--scenes", "home", "--total-steps", "32", *TINY)) == 0
+    convert_policy(out / "policy", tmp_path / "half", "float16", {"note": "x"})
+    full, half = load_policy(out / "policy"), load_policy(tmp_path / "half")
+    cfg = json.loads((tmp_path / "half" / "config.json").read_text())
+    assert cfg["weights_dtype"] == "float16" and cfg["training"]["note"] == "x"
+    assert (tmp_path / "half" / "policy.pt").stat().st_size < 0.6 * (out / "policy" / "policy.pt").stat().st_size
+    obs = np.random.default_rng(1).normal(size=(32, full.model.observation_space.shape[0])).astype(np.float32)
+    assert np.abs(full._predict(obs) - half._predict(obs)).max() < 0.02
+    state = torch.load(out / "policy" / "policy.pt", weights_only=True)
+    assert not any(k.startswith(("pi_features_extractor.", "vf_features_extractor.")) for k in state)  # stored once
 
 
 @pytest.mark.parametrize("num_cpus", [0, 2])
