@@ -19,7 +19,9 @@ act for the live robots among the keys of ``observations`` (the values are not r
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -306,3 +308,43 @@ def register_policy(name: str, factory: Callable[..., Policy], overwrite: bool =
     if not callable(factory):
         raise TypeError(f"factory must be callable, got {type(factory).__name__}")
     _REGISTRY[key] = factory
+
+
+# ---------------------------------------------------------------------------------------------
+# Learned policies shipped in policies/ (or trained by the user): registered when their weights exist.
+
+_POLICIES_DIR = Path(__file__).resolve().parents[2] / "policies"
+LEARNED_POLICIES: dict[str, tuple[str, str]] = {
+    # name: (folder under policies/, environment variable that points elsewhere, e.g. at runs/robot/policy)
+    "transformer-ppo": ("transformer_ppo", "NAVZOO_TRANSFORMER_PPO_DIR"),
+    "transformer-ppo-crowdnav-diffdrive": ("transformer_ppo_crowdnav", "NAVZOO_TRANSFORMER_PPO_CROWDNAV_DIR"),
+}
+
+
+def learned_policy_dir(name: str) -> Path:
+    """Where the learned policy ``name`` is loaded from: its environment variable if set, else ``policies/``."""
+    folder, var = LEARNED_POLICIES[_key(name)]
+    return Path(os.environ[var]) if os.environ.get(var) else _POLICIES_DIR / folder
+
+
+def _learned_factory(name: str) -> Callable[..., Policy]:
+    def factory(model_dir: str | Path | None = None, deterministic: bool = True, device: str = "cpu") -> Policy:
+        from navzoo.agents.robot_train import load_policy  # torch + SB3 only when a learned policy is made
+
+        return load_policy(model_dir if model_dir is not None else learned_policy_dir(name),
+                           deterministic=deterministic, device=device, name=name)
+
+    return factory
+
+
+def register_learned_policies() -> list[str]:
+    """Register every learned policy whose ``config.json`` exists (done on import); returns their names."""
+    found = []
+    for name in LEARNED_POLICIES:
+        if (learned_policy_dir(name) / "config.json").is_file():
+            register_policy(name, _learned_factory(name), overwrite=True)
+            found.append(name)
+    return found
+
+
+register_learned_policies()

@@ -15,12 +15,12 @@ import navzoo
 from navzoo.agents import baselines
 from navzoo.agents.robot_train import (
     add_arguments,
+    convert_policy,
     export_policy,
     load_policy,
     make_mixed_vec_env,
     register_transformer_ppo,
     run_cli,
-    convert_policy,
     shipped_policy_available,
 )
 from navzoo.agents.transformer import transformer_policy_kwargs
@@ -246,3 +246,38 @@ def test_cuda_without_cuda_is_rejected(tmp_path):
         pytest.skip("CUDA is available here")
     with pytest.raises(ValueError, match="CUDA is not available"):
         run_cli(_args("--out", str(tmp_path), "--device", "cuda"))
+
+
+def test_learned_policies_register_from_their_folders(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "run"
+    assert run_cli(_args("--out", str(out), "--scenes", "home", "--total-steps", "32", *TINY)) == 0
+    monkeypatch.setenv("NAVZOO_TRANSFORMER_PPO_DIR", str(out / "policy"))
+    monkeypatch.setenv("NAVZOO_TRANSFORMER_PPO_CROWDNAV_DIR", str(tmp_path / "missing"))
+    saved = dict(baselines._REGISTRY)
+    try:
+        baselines._REGISTRY.pop("transformer-ppo-crowdnav-diffdrive", None)
+        assert "transformer-ppo" in baselines.register_learned_policies()
+        assert "transformer-ppo-crowdnav-diffdrive" not in baselines.policy_names()  # no weights there
+        policy = baselines.make_policy("transformer-ppo")
+        env = navzoo.make("navzoo/Home-v0", flat_obs=True)
+        obs, _ = env.reset(seed=0)
+        act = policy.act(obs, env)
+        assert set(act) == {"robot_0"} and np.all(np.abs(act["robot_0"]) <= 1.0)
+    finally:
+        baselines._REGISTRY.clear()
+        baselines._REGISTRY.update(saved)
+
+
+def test_shipped_crowdnav_policy_loads_and_never_reverses():
+    d = baselines.learned_policy_dir("transformer-ppo-crowdnav-diffdrive")
+    if not (d / "config.json").is_file():
+        pytest.skip("policies/transformer_ppo_crowdnav is not shipped in this checkout")
+    policy = baselines.make_policy("transformer-ppo-crowdnav-diffdrive")
+    cfg = json.loads((d / "config.json").read_text())
+    assert cfg["weights_dtype"] == "float16" and cfg["training"]["forward_only"] is True
+    env = navzoo.make("navzoo/CircleCrossing-v0", flat_obs=True, robot={"kinematics": "diff_drive"})
+    obs, _ = env.reset(seed=3)
+    for _ in range(5):
+        act = policy.act(obs, env)
+        assert act["robot_0"][0] >= 0.0
+        obs, *_ = env.step(act)
