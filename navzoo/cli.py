@@ -111,6 +111,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_report_arguments(report)
 
+    scaling = sub.add_parser("scaling", help="robot-training studies: runtime scaling and parallel training (docs/training.md)")
+    from navzoo.agents.scaling_study import add_arguments as add_scaling_arguments
+
+    add_scaling_arguments(scaling)
+
     speed = sub.add_parser("speed", help="env throughput with kinematic crowds and its overhead over PyBullet")
     speed.add_argument("--humans", type=_int_list, default=[5, 20, 64], help="crowd sizes (default 5,20,64)")
     speed.add_argument("--steps", type=int, default=200)
@@ -134,6 +139,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _scenes(args)
         if args.command == "speed":
             return _speed(args)
+        if args.command == "scaling":
+            from navzoo.agents.scaling_study import run_cli as run_scaling_cli
+
+            return run_scaling_cli(args, parser.error)
         if args.command == "benchmark":
             from navzoo.benchmark.runner import run_cli as run_benchmark_cli
 
