@@ -452,6 +452,7 @@ class TrainArgs:
     ent_coef: float = 0.0
     target_kl: float | None = None
     forward_only: bool = False  # policy's speed command in [0, 1] (no reversing; diff-drive robots only)
+    init_from: str | None = None  # an exported policy folder whose weights start a new run (fresh optimiser)
     features_dim: int = 128
     heads: int = 4
     blocks: int = 3
@@ -694,6 +695,17 @@ def train(args: TrainArgs) -> dict[str, Any]:
             model.num_timesteps = done
             model._n_updates = int(found[1].get("n_updates", 0))
             print(json.dumps({"resumed_from": str(found[0]), "timesteps": done}), flush=True)
+        elif args.init_from:
+            start = load_policy(args.init_from).model
+            if start.observation_space != model.observation_space:
+                raise ValueError(f"--init-from {args.init_from}: its observation space {start.observation_space} "
+                                 f"differs from this run's {model.observation_space}")
+            try:
+                model.policy.load_state_dict(start.state_dict())
+            except RuntimeError as err:
+                raise ValueError(f"--init-from {args.init_from} has another network shape than this run's model "
+                                 f"options {args.model_options()}: {err}") from err
+            print(json.dumps({"initialised_from": str(args.init_from)}), flush=True)
         if done < args.total_steps:
 
             def _on_sigint(signum: int, frame: Any) -> None:
@@ -708,6 +720,7 @@ def train(args: TrainArgs) -> dict[str, Any]:
         meta = {"scenes": list(args.scenes), "n_steps": args.n_steps, "n_epochs": args.n_epochs,
                 "batch_size": args.batch_size, "lr": args.lr, "gamma": args.gamma, "seed": args.seed,
                 "env_overrides": args.extra, "forward_only": args.forward_only, "target_kl": args.target_kl,
+                "init_from": args.init_from,
                 "trained_with": "navzoo train robot"}
         summary["policy"] = str(export_policy(model, out / "policy", meta).parent)
         summary["timesteps"] = int(model.num_timesteps)
@@ -755,6 +768,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--gamma", type=float, default=d.gamma)
     p.add_argument("--ent-coef", type=float, default=d.ent_coef)
     p.add_argument("--target-kl", type=float, default=None, help="stop an update's epochs early past this KL (SB3)")
+    p.add_argument("--init-from", default=None,
+                   help="start a new run from an exported policy folder (e.g. policies/transformer_ppo_crowdnav); "
+                        "the optimiser starts fresh; ignored when --out holds a checkpoint")
     p.add_argument("--forward-only", action="store_true",
                    help="diff-drive policies command speeds in [0, max] only (no reversing), as CrowdNav's unicycle")
     p.add_argument("--features-dim", type=int, default=d.features_dim, help="transformer width D (= features)")
@@ -782,7 +798,8 @@ def run_cli(args: argparse.Namespace, error: Callable[[str], Any] | None = None)
             robots_per_env=args.robots_per_env, total_steps=args.total_steps, n_steps=args.n_steps,
             n_epochs=args.n_epochs, batch_size=args.batch_size, lr=args.lr, gamma=args.gamma,
             ent_coef=args.ent_coef, target_kl=getattr(args, "target_kl", None),
-            forward_only=bool(getattr(args, "forward_only", False)), features_dim=args.features_dim, heads=args.heads, blocks=args.blocks,
+            forward_only=bool(getattr(args, "forward_only", False)), init_from=getattr(args, "init_from", None),
+            features_dim=args.features_dim, heads=args.heads, blocks=args.blocks,
             net_arch=tuple(args.net_arch), device=args.device, seed=args.seed, threads=args.threads,
             save_every=args.save_every, keep=args.keep, time_limit_s=args.time_limit_s,
             extra={"robot": {"kinematics": args.kinematics}} if getattr(args, "kinematics", None) else {})
@@ -804,3 +821,40 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+
+def plot_learning_curve(metrics: str | Path, path_png: str | Path, title: str = "transformer + PPO",
+                        marks: Sequence[int] = ()) -> Path:
+    """Plot ``metrics.jsonl`` of a run (also several resumed sessions appended): mean episode reward and
+    success/collision rates (last 100 episodes) against robot steps; vertical lines at ``marks`` (steps)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [json.loads(line) for line in Path(metrics).read_text().splitlines() if line.strip()]
+    rows = [r for r in rows if r.get("ep_rew_mean") is not None and r.get("episodes", 0) >= 20]
+    if not rows:
+        raise ValueError(f"{metrics}: no rollout line with at least 20 finished episodes")
+    steps = np.array([r["timesteps"] for r in rows], float)
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 3.8))
+    ax1.plot(steps, [r["ep_rew_mean"] for r in rows], lw=1)
+    ax1.set_xlabel("robot steps")
+    ax1.set_ylabel("mean episode reward (last 100)")
+    ax2.plot(steps, [r["success_rate"] for r in rows], lw=1, label="success")
+    ax2.plot(steps, [r["collision_rate"] for r in rows], lw=1, label="collision")
+    ax2.set_xlabel("robot steps")
+    ax2.set_ylabel("rate (last 100 training episodes)")
+    ax2.set_ylim(0, 1)
+    ax2.legend(loc="center right")
+    for ax in (ax1, ax2):
+        for m in marks:
+            ax.axvline(m, color="grey", ls=":", lw=1)
+        ax.grid(alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    out = Path(path_png)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out

@@ -281,3 +281,18 @@ def test_shipped_crowdnav_policy_loads_and_never_reverses():
         act = policy.act(obs, env)
         assert act["robot_0"][0] >= 0.0
         obs, *_ = env.step(act)
+
+
+def test_init_from_an_exported_policy(tmp_path, capsys):
+    first = tmp_path / "first"
+    assert run_cli(_args("--out", str(first), "--scenes", "home", "--total-steps", "32", *TINY)) == 0
+    second = tmp_path / "second"
+    assert run_cli(_args("--out", str(second), "--scenes", "home", "--total-steps", "32", "--lr", "1e-12",
+                         "--init-from", str(first / "policy"), *TINY)) == 0
+    assert {"initialised_from": str(first / "policy")} in _json_lines(capsys.readouterr().out)
+    a = torch.load(first / "policy" / "policy.pt", weights_only=True)
+    b = torch.load(second / "policy" / "policy.pt", weights_only=True)
+    assert a.keys() == b.keys() and all(torch.allclose(a[k], b[k], atol=1e-6) for k in a)
+    with pytest.raises(ValueError, match="another network shape"):
+        run_cli(_args("--out", str(tmp_path / "third"), "--scenes", "home", "--total-steps", "32",
+                      "--init-from", str(first / "policy"), *TINY[:-2], "--features-dim", "32", "--n-epochs", "1"))
