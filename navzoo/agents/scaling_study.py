@@ -32,7 +32,8 @@ forward pass, the gap between ``infer`` and ``train`` is the PPO update.
 
 **2. Parallel training** (:func:`parallel_training`, ``scaling_study parallel``). For R parallel robots
 (R env copies, one robot each) and PPO minibatch size B (``min(B, n_steps x R)``, as a rollout holds
-``n_steps x R`` samples), one training run of ``sim_steps`` robot steps in total. One PPO iteration =
+``n_steps x R`` samples), one training run of ``sim_steps`` simulator steps (the paper's budget: every
+simulator step advances all R robots, so the run collects ``sim_steps x R`` robot steps). One PPO iteration =
 one rollout of ``n_steps`` steps of every robot followed by one update of ``n_epochs`` epochs over
 it. Per row: ``iterations``, the median wall seconds of one iteration (after the first one, which
 holds no update; the elapsed time of each rollout line is ``timesteps / fps``), ``wall_s`` (whole
@@ -40,9 +41,9 @@ run, setup included), and ``time_to_target_updates_s_extrapolated`` = median ite
 ``target_updates`` (default 5000, the paper's), an **extrapolation** from the measured iteration
 time, not a measured time; and the final ``ep_rew_mean`` and ``success_rate`` (last rollout line with
 a value: SB3's mean over the last 100 finished episodes and the goal rate over the same window;
-``None`` when no episode finished within the budget). With a fixed sim-step budget, more
-robots mean fewer iterations (``sim_steps / (n_steps x R)``): the paper's trade-off between wall time
-(fewer, larger updates) and sample efficiency.
+``None`` when no episode finished within the budget). With a fixed simulator-step budget every R
+gets the same number of iterations (``sim_steps / n_steps``), each on R times more samples: the
+paper's question is whether the extra robots buy a better policy for the same simulated time.
 
 Rows are appended to the ``--out`` JSONL file as soon as they are measured (a killed run keeps the
 finished ones) and printed as one JSON line each on stdout; ``--resume`` skips configurations already
@@ -595,13 +596,14 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
                       echo: bool = False) -> list[dict[str, Any]]:
     """Training time per PPO iteration and final reward for R parallel robots and minibatch size B.
 
-    For each (R in ``robots_list``, B in ``batch_sizes``) one fresh training run of ``sim_steps`` robot
-    steps on R copies of ``scene`` (one robot each), minibatch ``min(B, n_steps x R)``.
+    For each (R in ``robots_list``, B in ``batch_sizes``) one fresh training run of ``sim_steps`` simulator
+    steps (``sim_steps x R`` robot steps) on R copies of ``scene`` (one robot each), minibatch
+    ``min(B, n_steps x R)``.
 
     Args:
         robots_list: numbers R of parallel robots (env copies).
         batch_sizes: PPO minibatch sizes B (>= 2; capped at the rollout size n_steps x R).
-        sim_steps: total robot steps of every run (the fixed simulator budget; rounded up to whole rollouts).
+        sim_steps: simulator steps of every run (each advances all R robots; rounded up to whole rollouts).
         scene: scene name or id.
         device: torch device for PPO (``cpu``, ``cuda``, ``auto``).
         target_updates: policy updates (iterations) the time is extrapolated to (the paper: 5000).
@@ -651,7 +653,7 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
             batch = min(b, rollout)
             info = machine_info()
             with tempfile.TemporaryDirectory(prefix="navzoo_scaling_parallel_") as tmp:
-                targs = TrainArgs(out=tmp, scenes=(scene_id,), n_envs=r, num_cpus=w, total_steps=int(sim_steps),
+                targs = TrainArgs(out=tmp, scenes=(scene_id,), n_envs=r, num_cpus=w, total_steps=int(sim_steps) * r,
                                   n_steps=n_steps, n_epochs=n_epochs, batch_size=batch, device=dev, threads=threads,
                                   seed=seed, save_every=10**12, keep=1, time_limit_s=time_limit_s,
                                   features_dim=model.features_dim, heads=model.heads, blocks=model.blocks,
@@ -670,7 +672,7 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
                 "scene": scene_id, "device": dev, "workers": w, "sim_steps": int(sim_steps),
                 "n_steps": n_steps, "n_epochs": n_epochs, "rollout_size": rollout,
                 "gradient_steps_per_iteration": n_epochs * math.ceil(rollout / batch),
-                "iterations": len(lines), "iterations_expected": math.ceil(sim_steps / rollout),
+                "iterations": len(lines), "iterations_expected": math.ceil(sim_steps / n_steps),
                 "timesteps": summary.get("timesteps"), "stop_reason": summary.get("reason"),
                 "wall_s": round(wall, 3), "train_elapsed_s": summary.get("elapsed_s"),
                 "iteration_s_median": None if med is None else round(med, 4),
@@ -897,7 +899,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         description="Parallel training: iteration time and final reward vs robots and batch size.")
     pt.add_argument("--robots", type=_int_list(1), default=[1, 2, 4, 8, 16], help="parallel robots, e.g. 1,2,4,8,16")
     pt.add_argument("--batch-sizes", type=_int_list(2), default=[64, 512], help="PPO minibatch sizes, e.g. 64,512")
-    pt.add_argument("--sim-steps", type=_pos_int(1), default=16000, help="robot steps of every run (fixed budget)")
+    pt.add_argument("--sim-steps", type=_pos_int(1), default=16000, help="simulator steps of every run; each advances all R robots (paper: 16000)")
     pt.add_argument("--target-updates", type=_pos_int(1), default=5000,
                     help="updates the iteration time is extrapolated to (paper: 5000)")
     pt.add_argument("--time-limit-s", type=_pos_float, default=None, help="optional wall limit of each run")
