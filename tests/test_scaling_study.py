@@ -96,8 +96,8 @@ def test_runtime_train_mode(tmp_path):
     assert row["mode"] == "train" and row["env_steps_per_s"] > 0 and row["env_steps"] > 0
     assert row["agents_per_env"] == 1 + _peds_in("navzoo/CircleCrossing-v0")
     assert row["agent_steps_per_s"] == pytest.approx(row["env_steps_per_s"] * row["agents_per_env"], rel=1e-3)
-    assert row["rollouts"] >= 1 and row["env_steps_per_s_incl_setup"] > 0
-    assert row["rate_source"].startswith("fps of the last metrics.jsonl line")
+    assert row["rollouts"] == 4 and row["env_steps_per_s_incl_setup"] > 0  # whole rollouts, updates included
+    assert row["rate_source"].startswith("steady state over rollouts 2..4") and row["env_steps"] == 3 * 8
 
 
 def test_parallel_study_and_plots(tmp_path, runtime_rows):
@@ -105,9 +105,9 @@ def test_parallel_study_and_plots(tmp_path, runtime_rows):
     rows = parallel_training([1, 2], [64], 32, "home", "cpu", workers=0, model=TINY, n_steps=16, n_epochs=1,
                              out=out)
     assert [(r["robots"], r["batch_size"]) for r in rows] == [(1, 16), (2, 32)]  # capped at n_steps x robots
-    assert [r["iterations"] for r in rows] == [2, 1]  # fixed budget: more robots, fewer iterations
+    assert [r["iterations"] for r in rows] == [2, 2]  # fixed simulator steps: same iterations, R x the data
     for r in rows:
-        assert r["iterations"] >= 1 and r["timesteps"] == 32 and r["stop_reason"] == "total_steps"
+        assert r["timesteps"] == 32 * r["robots"] and r["stop_reason"] == "total_steps"
         assert r["iteration_s_median"] > 0
         assert r["time_to_target_updates_s_extrapolated"] == pytest.approx(r["iteration_s_median"] * 5000, rel=1e-3)
         assert "ep_rew_mean" in r and "success_rate" in r and "extrapolated" in r["note"]

@@ -431,13 +431,19 @@ def _train_quiet(targs: Any) -> dict[str, Any]:
         return train(targs)
 
 
+TRAIN_ROLLOUTS = 4  # rollouts (each with its PPO update) timed per train-mode measurement
+
+
 def _measure_train(scene_id: str, n: int, workers: int, seconds: float, seed: int, device: str, threads: int | None,
                    model: ModelSize, n_steps: int, n_epochs: int) -> dict[str, Any]:
     from navzoo.agents.robot_train import TrainArgs
 
     with tempfile.TemporaryDirectory(prefix="navzoo_scaling_train_") as tmp:
-        targs = TrainArgs(out=tmp, scenes=(scene_id,), n_envs=n, num_cpus=workers, total_steps=10**12,
-                          n_steps=n_steps, n_epochs=n_epochs, time_limit_s=seconds, device=device, threads=threads,
+        # TRAIN_ROLLOUTS whole rollouts (so every rate below spans rollouts *and* updates); ``seconds``
+        # only caps a run that would take far longer.
+        targs = TrainArgs(out=tmp, scenes=(scene_id,), n_envs=n, num_cpus=workers,
+                          total_steps=n_steps * n * TRAIN_ROLLOUTS, n_steps=n_steps, n_epochs=n_epochs,
+                          time_limit_s=max(10.0 * seconds, 60.0), device=device, threads=threads,
                           seed=seed, save_every=10**12, keep=1, features_dim=model.features_dim, heads=model.heads,
                           blocks=model.blocks, net_arch=tuple(model.net_arch))
         t0 = time.perf_counter()
@@ -447,7 +453,16 @@ def _measure_train(scene_id: str, n: int, workers: int, seconds: float, seed: in
     row: dict[str, Any] = {"batch_size": targs.batch_size, "n_steps": n_steps, "n_epochs": n_epochs,
                            "rollouts": len(lines), "timesteps_total": summary.get("timesteps"),
                            "train_elapsed_s": summary.get("elapsed_s"), "wall_s_incl_setup": round(wall, 3)}
-    if lines and lines[-1]["fps"] > 0:
+    if len(lines) >= 2 and lines[-1]["elapsed_s"] > lines[0]["elapsed_s"]:
+        # steady state: from the end of the first rollout to the end of the last one (rollouts + updates)
+        span = lines[-1]["elapsed_s"] - lines[0]["elapsed_s"]
+        steps = lines[-1]["timesteps"] - lines[0]["timesteps"]
+        row.update(env_steps=int(steps), wall_s=round(span, 3), env_steps_per_s=steps / span,
+                   env_steps_per_s_incl_setup=lines[-1]["timesteps"] / max(lines[-1]["elapsed_s"], 1e-9),
+                   first_rollout_steps_per_s=float(lines[0]["fps"]),
+                   rate_source=f"steady state over rollouts 2..{len(lines)} of metrics.jsonl (each followed by its "
+                               "update): (timesteps_last - timesteps_first) / (elapsed_last - elapsed_first)")
+    elif lines and lines[-1]["fps"] > 0:
         last = lines[-1]
         learn_s = last["timesteps"] / last["fps"]  # fresh run: fps = timesteps / seconds since learning started
         row.update(env_steps=int(last["timesteps"]), wall_s=learn_s, env_steps_per_s=float(last["fps"]),
