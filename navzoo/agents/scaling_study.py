@@ -16,10 +16,10 @@ parallel env copies of one scene, the throughput of three workloads:
   (``deterministic=False``) from a freshly initialised PPO transformer policy on ``device``. Agents
   per env = 1 robot + the pedestrians.
 * ``train``: the whole PPO training (rollouts + ``n_epochs`` updates of every ``n_steps`` rollout),
-  :func:`navzoo.agents.robot_train.train` with ``time_limit_s=seconds`` (setup included in that
-  limit); the rate is the ``fps`` of the last rollout line of its ``metrics.jsonl`` (robot steps per
-  second since learning started, updates included, setup excluded); the rate with setup included is
-  ``env_steps_per_s_incl_setup``.
+  :func:`navzoo.agents.robot_train.train` for 4 whole rollouts (``TRAIN_ROLLOUTS``; ``seconds`` only
+  caps a run that would take 10x longer); the rate is the steady state from the end of the first
+  rollout to the end of the last one in its ``metrics.jsonl`` (rollouts and their updates, setup
+  excluded); the rate with setup included is ``env_steps_per_s_incl_setup``.
 
 One row per (mode, N): ``env_steps`` (summed over the N copies; one env step = one control step of one
 copy), ``wall_s``, ``env_steps_per_s``, ``agents_per_env``, ``agent_steps_per_s`` (= env steps/s x
@@ -493,7 +493,7 @@ def runtime_scaling(mode: str, n_envs_list: Sequence[int], scene: str = "home", 
             from a fresh transformer PPO policy) or ``"train"`` (PPO training, updates included).
         n_envs_list: numbers N of parallel env copies of ``scene``.
         scene: scene name (``"home"``) or id (``"navzoo/Home-v0"``).
-        seconds: timed wall seconds per measurement (``train``: the time limit of the run, setup included).
+        seconds: timed wall seconds per measurement (``train``: 4 whole rollouts are timed instead; this only caps a run at 10x it).
         device: torch device of the policy (``cpu``, ``cuda``, ``auto``); ``peds`` runs no network and
             is recorded as ``cpu``.
         workers: worker processes (None: ``min(N, os.cpu_count())``; 0 or 1: in this process; capped at N).
@@ -813,7 +813,7 @@ def plot_parallel(rows: Sequence[Mapping[str, Any]], path_png: str | Path) -> Pa
     sec.set_ylabel(f"h to {target} updates (extrapolated)")
     sims = sorted({r["sim_steps"] for r in rows})
     ax_r.set_ylabel("final mean episode reward")
-    ax_r.set_title(f"reward after {', '.join(str(s) for s in sims)} robot steps")
+    ax_r.set_title(f"reward after {', '.join(str(s) for s in sims)} simulator steps")
     if not any_reward:
         ax_r.text(0.5, 0.5, "no episode finished\nwithin the budget", ha="center", va="center",
                   transform=ax_r.transAxes)
