@@ -27,13 +27,7 @@ TINY = ModelSize(features_dim=16, heads=2, blocks=1, net_arch=(16,))
 PNG_MAGIC = b"\x89PNG"
 
 
-@pytest.fixture(autouse=True)
-def _one_torch_thread():
-    """One intra-op thread: the test machine is small and shared."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def _peds_in(env_id: str) -> int:

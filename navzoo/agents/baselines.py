@@ -327,14 +327,24 @@ def learned_policy_dir(name: str) -> Path:
     return Path(os.environ[var]) if os.environ.get(var) else _POLICIES_DIR / folder
 
 
-def _learned_factory(name: str) -> Callable[..., Policy]:
+def register_learned_policy(name: str, model_dir: str | Path | None = None) -> None:
+    """Register ``name`` (a key of :data:`LEARNED_POLICIES`) with a factory that loads its exported weights.
+
+    The weights are read when the policy is made (``make_policy(name, deterministic=..., model_dir=...)``)
+    from ``model_dir``, else :func:`learned_policy_dir`; so registering never fails, and making it
+    without weights raises ``FileNotFoundError`` naming the training command. Registering again
+    replaces the earlier registration.
+    """
+    default_dir = model_dir
+
     def factory(model_dir: str | Path | None = None, deterministic: bool = True, device: str = "cpu") -> Policy:
         from navzoo.agents.robot_train import load_policy  # torch + SB3 only when a learned policy is made
 
-        return load_policy(model_dir if model_dir is not None else learned_policy_dir(name),
+        where = model_dir if model_dir is not None else default_dir
+        return load_policy(where if where is not None else learned_policy_dir(name),
                            deterministic=deterministic, device=device, name=name)
 
-    return factory
+    register_policy(name, factory, overwrite=True)
 
 
 def register_learned_policies() -> list[str]:
@@ -342,7 +352,7 @@ def register_learned_policies() -> list[str]:
     found = []
     for name in LEARNED_POLICIES:
         if (learned_policy_dir(name) / "config.json").is_file():
-            register_policy(name, _learned_factory(name), overwrite=True)
+            register_learned_policy(name)
             found.append(name)
     return found
 

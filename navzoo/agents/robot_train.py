@@ -412,22 +412,12 @@ def load_policy(model_dir: str | Path | None = None, deterministic: bool = True,
 
 
 def register_transformer_ppo(model_dir: str | Path | None = None) -> None:
-    """Register ``"transformer-ppo"`` with :func:`navzoo.agents.baselines.make_policy`.
+    """Register ``"transformer-ppo"`` with :func:`navzoo.agents.baselines.make_policy`, loading from
+    ``model_dir`` (default: ``$NAVZOO_TRANSFORMER_PPO_DIR`` or ``policies/transformer_ppo``); see
+    :func:`navzoo.agents.baselines.register_learned_policy`."""
+    from navzoo.agents.baselines import register_learned_policy
 
-    The factory loads the exported weights from ``model_dir`` (default ``policies/transformer_ppo``)
-    when the policy is made (``make_policy("transformer-ppo", deterministic=..., model_dir=...)``), so
-    registering never fails; making it without weights raises ``FileNotFoundError`` naming the command
-    that trains them. Registering again replaces the earlier registration.
-    """
-    from navzoo.agents.baselines import register_policy
-
-    default_dir = model_dir
-
-    def factory(model_dir: str | Path | None = None, deterministic: bool = True, device: str = "cpu") -> SB3Policy:
-        return load_policy(model_dir if model_dir is not None else default_dir, deterministic=deterministic,
-                           device=device)
-
-    register_policy("transformer-ppo", factory, overwrite=True)
+    register_learned_policy("transformer-ppo", model_dir)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -832,6 +822,8 @@ def plot_learning_curve(metrics: str | Path, path_png: str | Path, title: str = 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from navzoo.world.plot import save_figure
+
     rows = [json.loads(line) for line in Path(metrics).read_text().splitlines() if line.strip()]
     rows = [r for r in rows if r.get("ep_rew_mean") is not None and r.get("episodes", 0) >= 20]
     if not rows:
@@ -853,8 +845,4 @@ def plot_learning_curve(metrics: str | Path, path_png: str | Path, title: str = 
         ax.grid(alpha=0.3)
     fig.suptitle(title)
     fig.tight_layout()
-    out = Path(path_png)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save_figure(fig, path_png, dpi=110)

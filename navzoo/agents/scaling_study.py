@@ -725,6 +725,12 @@ def _pyplot() -> Any:
     return plt
 
 
+def _save_figure(fig: Any, path: str | Path, dpi: int) -> Path:
+    from navzoo.world.plot import save_figure as save  # imports pyplot: only after _pyplot() chose Agg
+
+    return save(fig, path, dpi=dpi)
+
+
 def plot_runtime(rows: Sequence[Mapping[str, Any]], path_png: str | Path) -> Path:
     """Env steps/s and agent steps/s vs parallel envs (log2 x axis), one line per mode (and device, scene).
 
@@ -768,11 +774,7 @@ def plot_runtime(rows: Sequence[Mapping[str, Any]], path_png: str | Path) -> Pat
     fig.suptitle(f"runtime scaling, {', '.join(sorted(s.split('/')[-1] for s in scenes))} — {m.get('cpu_count')} CPUs"
                  + (f", {m['cuda_device']}" if m.get("cuda_device") else ""), fontsize=10)
     fig.tight_layout()
-    path = Path(path_png)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save_figure(fig, path_png, dpi=120)
 
 
 def plot_parallel(rows: Sequence[Mapping[str, Any]], path_png: str | Path) -> Path:
@@ -822,11 +824,7 @@ def plot_parallel(rows: Sequence[Mapping[str, Any]], path_png: str | Path) -> Pa
             ax.legend()
     fig.suptitle(f"parallel training, {rows[0]['scene'].split('/')[-1]}, device {rows[0]['device']}", fontsize=10)
     fig.tight_layout()
-    path = Path(path_png)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save_figure(fig, path_png, dpi=120)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -128,8 +128,13 @@ def contact_sheet(names: Sequence[str], path: str | Path, cols: int = 4, seed: i
     for ax in axes.ravel()[len(names):]:
         ax.axis("off")
     fig.tight_layout()
+    return save_figure(fig, path, dpi=130)
+
+
+def save_figure(fig: Any, path: str | Path, dpi: int = 110) -> Path:
+    """Write ``fig`` to ``path`` (parent folders created), close it, and return the path."""
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=130)
+    fig.savefig(out, dpi=dpi)
     plt.close(fig)
     return out

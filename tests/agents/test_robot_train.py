@@ -29,13 +29,7 @@ TINY = ["--features-dim", "16", "--heads", "2", "--blocks", "1", "--net-arch", "
         "--n-epochs", "1"]
 
 
-@pytest.fixture(autouse=True)
-def _one_torch_thread():
-    """One intra-op thread: on a small shared machine OpenMP spinning makes these tests 10x slower."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def _args(*argv: str) -> argparse.Namespace:

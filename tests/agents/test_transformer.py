@@ -19,13 +19,7 @@ K, T, C = 6, 8, 32
 SMALL = dict(features_dim=32, n_heads=2, n_blocks=2)
 
 
-@pytest.fixture(autouse=True)
-def _one_torch_thread():
-    """One intra-op thread: on a small shared machine OpenMP spinning makes these tests 10x slower."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def _extractor(space=None, seed: int = 0, **kw) -> SpatioTemporalExtractor:
