@@ -3,6 +3,7 @@
 # round and score it on validation episodes (benchmark seed 1; the reported test uses seed 0).
 # usage (device machine, wheels installed, $OUT set):
 #   training/robot/continue_select.sh RUN_DIR ROUNDS SECONDS [SNAPSHOT_TO_SCORE_FIRST]
+# TRAIN_EXTRA adds training options, e.g. TRAIN_EXTRA="--lr 5e-5 --target-kl 0.03 --init-from DIR".
 set -uo pipefail
 run=$1; rounds=$2; secs=$3; snaps=$OUT/snaps; mkdir -p "$snaps"
 score() {  # score SNAPSHOT_DIR LABEL
@@ -20,7 +21,7 @@ if [ -n "${4:-}" ]; then score "$4" start; fi
 for i in $(seq 1 "$rounds"); do
   python3 -m navzoo.agents.robot_train --out "$run" --scenes navzoo/CircleCrossing-v0 --kinematics diff_drive \
     --forward-only --n-envs 48 --num-cpus 15 --batch-size 512 --device cuda --threads 1 --total-steps 20000000 \
-    --time-limit-s "$secs" --save-every 200000 --keep 1 2>&1 | grep -v '^b3' >> "$OUT/train.log"
+    --time-limit-s "$secs" --save-every 200000 --keep 1 ${TRAIN_EXTRA:-} 2>&1 | grep -v '^b3' >> "$OUT/train.log"
   tail -1 "$OUT/train.log" | cut -c1-200
   snapshot
 done
