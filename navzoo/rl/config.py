@@ -205,10 +205,17 @@ class JointConfig:
             raise ValueError("humans: learn needs n_humans >= 1")
         amp = nav.human_model == "amp"
         if self.humans == LEARN and amp:
-            raise ValueError(
-                "humans: learn with human_model: amp is not supported yet: AMP pedestrians need the style reward of "
-                "a discriminator trained alongside them (navzoo.agents.amp); use humans: frozen (the shipped AMP "
-                "controller) or kinematic pedestrians (docs/scaling.md, 'AMP pedestrians')")
+            # AMP pedestrians learn with the AMP learner (PPO + its discriminator's style reward), not RLlib:
+            # navzoo.rl.amp_joint. Their robots are frozen baselines there.
+            if self.robots == LEARN:
+                raise ValueError(
+                    "humans: learn with human_model: amp trains the pedestrians with the AMP learner and its "
+                    "discriminator (navzoo.rl.amp_joint), which drives frozen robots only; robots and AMP "
+                    "pedestrians learning at the same time is not supported yet: set robots: frozen with a "
+                    "baseline robot_policy (docs/scaling.md, 'AMP pedestrians')")
+            if isinstance(self.robot_policy, str) and self.robot_policy.startswith(RLLIB_PREFIX):
+                raise ValueError("humans: learn with human_model: amp drives its robots with a navzoo policy "
+                                 f"(a baseline or a shipped learned method), not {self.robot_policy!r}")
         if self.humans == CROWD and amp:
             raise ValueError("humans: crowd drives kinematic pedestrians only; with human_model: amp use humans: frozen "
                              "(the AMP controller follows the crowd model's trajectories)")

@@ -429,6 +429,8 @@ def run_cli(args: argparse.Namespace, error: Callable[[str], None] | None = None
     if args.print_config:
         print(json.dumps(cfg.to_dict()))
         return 0
+    if cfg.humans == "learn" and cfg.nav_config().human_model == "amp":
+        return _run_amp_joint(cfg, args, fail)
     try:
         import ray  # noqa: F401
         import ray.rllib  # noqa: F401
@@ -443,6 +445,25 @@ def run_cli(args: argparse.Namespace, error: Callable[[str], None] | None = None
         ray.shutdown()
     print(json.dumps({"done": summary}), flush=True)
     return 130 if summary["interrupted"] else 0
+
+
+def _run_amp_joint(cfg: JointConfig, args: argparse.Namespace, fail: Callable[[str], int]) -> int:
+    """AMP pedestrians learning among frozen robots: the AMP learner with its discriminator
+    (:mod:`navzoo.rl.amp_joint`), in this process. ``--iterations`` x ``--batch-size`` pedestrian steps are
+    trained; ``--envs-per-runner`` env copies; the Ray flags do not apply."""
+    from navzoo.rl.amp_joint import AmpJointArgs, train
+
+    nav = cfg.nav_config()
+    env = {k: v for k, v in cfg.env.items() if k not in ("human_model", "dt", "flat_obs")}
+    jargs = AmpJointArgs(out=args.out, env_id=cfg.env_id, n_envs=args.envs_per_runner, n_humans=int(nav.n_humans),
+                         n_robots=int(nav.n_robots), robot_policy=cfg.robot_policy,
+                         steps=int(args.iterations) * int(args.batch_size), seed=int(args.seed), env=env)
+    try:
+        summary = train(jargs)
+    except (ValueError, FileNotFoundError) as exc:
+        return fail(str(exc))
+    print(json.dumps({"done": summary}, default=str), flush=True)
+    return 130 if summary.get("interrupted") else 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -50,6 +50,7 @@ def test_policy_mapping():
     ({"robots": "frozen", "robot_policy": "rllib:/no/such/run"}, "does not exist"),
     ({"env": {"human_model": "amp"}}, "discriminator"),
     ({"env": {"human_model": "amp"}, "humans": "crowd"}, "kinematic pedestrians only"),
+    ({"env": {"human_model": "amp"}, "robots": "frozen", "robot_policy": "rllib:x"}, "navzoo policy"),
     ({"env": {"human_model": "amp"}, "humans": "frozen", "human_policy": "rllib:x"}, "'amp' or 'amp:DIR'"),
 ])
 def test_bad_configs_are_rejected(data, match):

@@ -817,7 +817,7 @@ class AmpLearner:
         }
         return ckpt.save_checkpoint(ckpt_dir, self.iteration, tensors, meta, keep=self.cfg.keep_checkpoints)
 
-    def load_checkpoint(self, path: str | Path, reset_disc: bool = False) -> None:
+    def load_checkpoint(self, path: str | Path, reset_disc: bool = False, any_num_envs: bool = False) -> None:
         """Restore a checkpoint written by :meth:`save_checkpoint` (a ``ckpt_*`` directory).
 
         Raises :class:`CheckpointError` naming the file if it is corrupted, foreign, or made for other
@@ -826,12 +826,18 @@ class AmpLearner:
         and ``reset_disc`` is false. Other hyper-parameters may differ (a warning lists them): this
         learner's config wins, including the learning rates. ``reset_disc``: load everything but the
         discriminator, its optimiser, input normaliser and replay buffer, and start those fresh
-        (:meth:`reset_discriminator`).
+        (:meth:`reset_discriminator`). ``any_num_envs``: accept a checkpoint made with another number of
+        envs (a new batch, e.g. to start from a trained controller elsewhere); the env state is not restored.
         """
         tensors, meta = ckpt.load_checkpoint(path)
         meta_path = Path(path) if Path(path).is_dir() else Path(path).parent
         meta_path = meta_path / ckpt.META_FILE
-        if meta.get("dims") != self._dims():
+        saved_dims = dict(meta.get("dims") or {})
+        mine_dims = self._dims()
+        if any_num_envs:
+            saved_dims.pop("num_envs", None)
+            mine_dims.pop("num_envs")
+        if saved_dims != mine_dims:
             raise CheckpointError(
                 f"{meta_path}: made for env dims {meta.get('dims')}, this env has {self._dims()}"
             )
@@ -892,6 +898,7 @@ class AmpLearner:
         env_json = meta.get("env_state")
         if (
             env_json is not None
+            and not any_num_envs
             and callable(getattr(self.env, "load_state_dict", None))
             and "obs" in learner_arrays
         ):
