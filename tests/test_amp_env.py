@@ -96,6 +96,24 @@ def test_pushed_pedestrian_falls_and_is_done():
     env.close()
 
 
+def test_pedestrian_contact_flags_are_reported_and_consistent():
+    """Each pedestrian's info says whether it touched the map, any agent, and a robot; a robot contact is
+    also an agent contact."""
+    env = _raw(n_humans=2, max_episode_steps_override=200)
+    env.reset(seed=1)
+    zero = {"robot_0": np.zeros(2), "human_0": np.zeros(ACT_DIM), "human_1": np.zeros(ACT_DIM)}
+    for _ in range(20):
+        _, _, _, _, info = env.step({a: zero[a] for a in env.agents})
+        for h in ("human_0", "human_1"):
+            if h in info:
+                i = info[h]
+                assert {"map_contact", "agent_contact", "robot_contact"} <= set(i)
+                assert not i["robot_contact"] or i["agent_contact"]
+        if not env.agents:
+            break
+    env.close()
+
+
 def test_amp_world_is_deterministic():
     def run():
         env = make("navzoo/Lobby-v0", human_model="amp", n_humans=2, max_episode_steps_override=40)

@@ -244,11 +244,13 @@ class AmpHumans:
             "path_error": np.sqrt(err2),
         }
 
-    def contacts(self) -> tuple[np.ndarray, np.ndarray]:
-        """(H,) bools: touching a scene obstacle; touching another pedestrian or a robot (last physics step)."""
+    def contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(H,) bools: touching a scene obstacle; touching another pedestrian or a robot; touching a robot
+        (last physics step)."""
         env = self.env
         map_hit = np.zeros(self.n, dtype=bool)
         agent_hit = np.zeros(self.n, dtype=bool)
+        robot_hit = np.zeros(self.n, dtype=bool)
         for j, body in enumerate(self.ids):
             for c in p.getContactPoints(bodyA=body, physicsClientId=self.client):
                 kind = env._body_kind.get(c[2])
@@ -256,4 +258,5 @@ class AmpHumans:
                     map_hit[j] = True
                 elif kind in ("human", "robot") and c[2] != body:
                     agent_hit[j] = True
-        return map_hit, agent_hit
+                    robot_hit[j] |= kind == "robot"
+        return map_hit, agent_hit, robot_hit

@@ -334,6 +334,7 @@ class NavEnv(ParallelEnv):
         self.human_fallen = np.zeros(H, dtype=bool)
         self.human_map_contact = np.zeros(H, dtype=bool)
         self.human_agent_contact = np.zeros(H, dtype=bool)
+        self.human_robot_contact = np.zeros(H, dtype=bool)
         if self.amp is not None:
             self.amp.reset(self.pos[R:], self.yaw[R:])
         else:
@@ -480,7 +481,7 @@ class NavEnv(ParallelEnv):
             h_pos, h_yaw, h_vel, h_omega = self.amp.planar()
             self.pos[hum], self.yaw[hum], self.vel[hum], self.omega[hum] = h_pos, h_yaw, h_vel, h_omega
             self.amp.fallen |= self.amp.bodies.fallen()
-            self.human_map_contact, self.human_agent_contact = self.amp.contacts()
+            self.human_map_contact, self.human_agent_contact, self.human_robot_contact = self.amp.contacts()
             self.human_fallen = self.amp.fallen.copy()
         r_pos, r_yaw, tilt = self.robots.read_state()
         nan_state = bool(~np.isfinite(r_pos[robot_alive]).all() or ~np.isfinite(r_yaw[robot_alive]).all())
@@ -587,6 +588,7 @@ class NavEnv(ParallelEnv):
                     info["fallen"] = bool(self.human_fallen[j])
                     info["map_contact"] = bool(self.human_map_contact[j])
                     info["agent_contact"] = bool(self.human_agent_contact[j])
+                    info["robot_contact"] = bool(self.human_robot_contact[j])
                     for name in ("track", "energy", "direction", "path_error"):
                         info[f"reward/{name}" if name != "path_error" else name] = float(amp_terms[name][j])
             if nan_state:

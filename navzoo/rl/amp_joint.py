@@ -203,8 +203,8 @@ class NavAmpVecEnv:
                 s["falls"] += int(bool(term.get(h, False)) and bool(inf.get("fallen", False)))
                 s["agent_contact_steps"] += int(bool(inf.get("agent_contact", False)))
                 s["map_contact_steps"] += int(bool(inf.get("map_contact", False)))
+                s["robot_contact_steps"] += int(bool(inf.get("robot_contact", False)))
                 s["path_error_sum"] += float(inf.get("path_error", 0.0))
-            s["robot_contact_steps"] += int(self._robot_contacts(env))
             for r in env.possible_agents[:self.n_robots]:
                 if r in term or r in trunc:
                     if term.get(r, False) or trunc.get(r, False):
@@ -225,17 +225,6 @@ class NavAmpVecEnv:
         if (terminated | truncated).any():
             info_out["final_obs"] = final_obs
         return self._obs.copy(), reward, terminated, truncated, info_out
-
-    def _robot_contacts(self, env: Any) -> int:
-        """Pedestrians touching a robot in the last physics step (count over the copy's pedestrians)."""
-        import pybullet as p
-
-        n = 0
-        robot_ids = set(env.robots.ids)
-        for body in env.amp.ids:
-            if any(c[2] in robot_ids for c in p.getContactPoints(bodyA=body, physicsClientId=env.client)):
-                n += 1
-        return n
 
     def sample_reference_amp_obs(self, n: int, rng: np.random.Generator) -> np.ndarray:
         from navzoo.agents.amp.path_env import reference_amp_windows
