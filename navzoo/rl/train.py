@@ -454,6 +454,8 @@ def _run_amp_joint(cfg: JointConfig, args: argparse.Namespace, fail: Callable[[s
     from navzoo.rl.amp_joint import AmpJointArgs, train
 
     nav = cfg.nav_config()
+    if nav.n_humans is None:
+        return fail(f"{cfg.env_id} has no fixed pedestrian count: give --n-humans for AMP pedestrians that learn")
     env = {k: v for k, v in cfg.env.items() if k not in ("human_model", "dt", "flat_obs")}
     jargs = AmpJointArgs(out=args.out, env_id=cfg.env_id, n_envs=args.envs_per_runner, n_humans=int(nav.n_humans),
                          n_robots=int(nav.n_robots), robot_policy=cfg.robot_policy,

@@ -111,3 +111,11 @@ def test_navzoo_train_joint_dispatches_amp_pedestrians_to_the_amp_learner(tmp_pa
 def test_cli_errors_name_the_problem(capsys):
     assert main(["evaluate", "--env", "navzoo/Nowhere-v0", "--steps", "1"]) == 2
     assert "unknown navzoo env id" in capsys.readouterr().err
+
+
+def test_navzoo_train_joint_needs_a_pedestrian_count_for_learning_amp_pedestrians(tmp_path, capsys):
+    from navzoo.rl.train import main as joint_main
+
+    rc = joint_main(["--env", "navzoo/Lobby-v0", "--robots", "frozen", "--humans", "learn", "--set", "human_model=amp",
+                     "--out", str(tmp_path / "j")])
+    assert rc == 2 and "give --n-humans" in capsys.readouterr().err
