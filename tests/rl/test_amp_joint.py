@@ -116,6 +116,7 @@ def test_cli_errors_name_the_problem(capsys):
 def test_navzoo_train_joint_needs_a_pedestrian_count_for_learning_amp_pedestrians(tmp_path, capsys):
     from navzoo.rl.train import main as joint_main
 
-    rc = joint_main(["--env", "navzoo/Lobby-v0", "--robots", "frozen", "--humans", "learn", "--set", "human_model=amp",
-                     "--out", str(tmp_path / "j")])
-    assert rc == 2 and "give --n-humans" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:  # argparse's error: exit status 2 with the message
+        joint_main(["--env", "navzoo/Lobby-v0", "--robots", "frozen", "--humans", "learn", "--set", "human_model=amp",
+                    "--out", str(tmp_path / "j")])
+    assert exc.value.code == 2 and "give --n-humans" in capsys.readouterr().err
