@@ -48,6 +48,12 @@ REPO_ROOT = Path(__file__).resolve().parents[2]
 SHIPPED_STATE = REPO_ROOT / "training" / "amp"  # the committed training checkpoint of the shipped policy
 
 
+def _pose(state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """A copy of the pose fields of a ``read_state()`` dict: what the next frame's finite-difference
+    velocities (:func:`navzoo.agents.amp.features.finite_difference_velocities`) start from."""
+    return {key: np.array(state[key], copy=True) for key in ("root_pos", "root_quat", "sph", "rev")}
+
+
 class NavAmpVecEnv:
     """The pedestrians of ``n_envs`` navzoo worlds as one :class:`~navzoo.agents.amp.learner.AmpVecEnv`.
 
@@ -110,7 +116,7 @@ class NavAmpVecEnv:
         """Zero the counters of :meth:`stats`."""
         self._stats = {"pedestrian_steps": 0, "falls": 0, "agent_contact_steps": 0, "robot_contact_steps": 0,
                        "map_contact_steps": 0, "path_error_sum": 0.0, "robot_episodes": 0, "robot_goals": 0,
-                       "robot_collisions": 0, "copy_restarts": 0}
+                       "robot_collisions": 0}
 
     def stats(self) -> dict[str, float]:
         """Rates since :meth:`reset_stats`: falls per pedestrian-minute, contact shares of pedestrian steps
@@ -149,7 +155,7 @@ class NavAmpVecEnv:
         self._robot_obs[k] = {a: o for a, o in obs.items() if a.startswith("robot_")}
         self._obs[self._rows(k)] = np.stack([np.asarray(obs[a], np.float32) for a in self.humans])
         state = env.amp.state()
-        self._prev[k] = {key: np.array(state[key], copy=True) for key in ("root_pos", "root_quat", "sph", "rev")}
+        self._prev[k] = _pose(state)
         # The first frame has no predecessor: standing bodies, zero velocities (as the path env's standing starts).
         self._window[self._rows(k)] = amp_features(state)[:, None, :]
 
@@ -185,7 +191,7 @@ class NavAmpVecEnv:
             obs, rew, term, trunc, info = env.step(acts)
             state = env.amp.state()
             feats = amp_features(finite_difference_velocities(self._prev[k], state, self.dt))
-            self._prev[k] = {key: np.array(state[key], copy=True) for key in ("root_pos", "root_quat", "sph", "rev")}
+            self._prev[k] = _pose(state)
             win = np.roll(self._window[rows], -1, axis=1)
             win[:, -1] = feats
             self._window[rows] = win
@@ -206,18 +212,16 @@ class NavAmpVecEnv:
                 s["robot_contact_steps"] += int(bool(inf.get("robot_contact", False)))
                 s["path_error_sum"] += float(inf.get("path_error", 0.0))
             for r in env.possible_agents[:self.n_robots]:
-                if r in term or r in trunc:
-                    if term.get(r, False) or trunc.get(r, False):
-                        s["robot_episodes"] += 1
-                        ev = info.get(r, {}).get("event", "")
-                        s["robot_goals"] += int(ev == "goal")
-                        s["robot_collisions"] += int(str(ev).startswith("collision"))
+                if term.get(r, False) or trunc.get(r, False):
+                    s["robot_episodes"] += 1
+                    ev = info[r].get("event", "")
+                    s["robot_goals"] += int(ev == "goal")
+                    s["robot_collisions"] += int(str(ev).startswith("collision"))
             restart = h_term.any() or h_trunc.any() or not any(h in env.agents for h in self.humans)
             if restart:
                 terminated[rows] = h_term
                 truncated[rows] = ~h_term
                 final_obs[rows] = new_obs
-                s["copy_restarts"] += 1
                 self._reset_copy(k)
             else:
                 self._obs[rows] = new_obs
