@@ -76,6 +76,18 @@ class NavConfig:
         goal_tolerance: a robot reaches its goal when closer than this (m); ``None`` = robot radius
             (CrowdNav's rule, as the paper's reward).
         min_goal_distance: minimum start-goal distance of sampled tasks (m).
+        robot_subgoal: ``None`` = robots observe their goal (the paper, CrowdNav); a distance ``L`` (m)
+            = robots observe a subgoal instead, the farthest point of their A* path within ``L`` m and in
+            line of sight (:mod:`navzoo.envs.subgoal`; for multi-room scenes). Goal reaching, metrics
+            and the goal reward still use the real goal.
+        robot_progress: distance behind the reward's progress term ``3.2 (d_{t-1} - d_t)`` for robots:
+            ``"euclidean"`` (the paper) or ``"geodesic"`` (shortest path through the free space, so a
+            detour around a wall is not punished; :mod:`navzoo.envs.subgoal`).
+        wall_proximity: the reward's proximity term penalises being closer than 0.9 m (edge to edge)
+            to people and robots; ``None`` = the same 0.9 m for walls and obstacles (the paper), a
+            number = that distance for walls and obstacles instead (m; 0 = walls only count for
+            collisions). In a home or a store most of a shortest path runs within 0.9 m of a wall, where
+            the paper's reward gives no progress term at all.
         k_neighbors: people/robots in each observation (K).
         history: past steps per neighbour (T).
         sensor_range: neighbours farther than this are masked out (m).
@@ -114,6 +126,9 @@ class NavConfig:
     time_limit: float | None = None
     goal_tolerance: float | None = None
     min_goal_distance: float = 3.0
+    robot_subgoal: float | None = None
+    robot_progress: Literal["euclidean", "geodesic"] = "euclidean"
+    wall_proximity: float | None = None
     k_neighbors: int = 6
     history: int = 8
     sensor_range: float = 6.0
@@ -180,6 +195,13 @@ class NavConfig:
             raise bad("path_clearance", "a finite number >= 0")
         if self.time_limit is not None and not _is_pos(self.time_limit):
             raise bad("time_limit", "None or a finite number > 0")
+        if self.robot_subgoal is not None and not _is_pos(self.robot_subgoal):
+            raise bad("robot_subgoal", "None or a finite number > 0 (m)")
+        if self.robot_progress not in ("euclidean", "geodesic"):
+            raise bad("robot_progress", "'euclidean' or 'geodesic'")
+        if self.wall_proximity is not None and (isinstance(self.wall_proximity, bool) or not (
+                _is_pos(self.wall_proximity) or self.wall_proximity == 0)):
+            raise bad("wall_proximity", "None or a finite number >= 0 (m)")
         if self.goal_tolerance is not None and not _is_pos(self.goal_tolerance):
             raise bad("goal_tolerance", "None or a finite number > 0")
         if self.max_episode_steps_override is not None and (

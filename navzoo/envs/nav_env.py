@@ -22,6 +22,7 @@ from navzoo.envs.amp_humans import PLAN_MARGIN as AMP_PLAN_MARGIN
 from navzoo.envs.amp_humans import AmpHumans
 from navzoo.envs.config import NavConfig
 from navzoo.envs.rewards import TERMS, RewardParams, navigation_reward
+from navzoo.envs.subgoal import RobotGuide
 from navzoo.world.builder import GROUP_ROBOT, GROUP_STATIC, build_scene
 from navzoo.world.geometry import swept_circle_hits_segments
 from navzoo.world.library import get_scene
@@ -153,7 +154,7 @@ class NavEnv(ParallelEnv):
         self._index = {a: i for i, a in enumerate(self.possible_agents)}
         self.agents: list[str] = []
         self.goal_tolerance = cfg.goal_tolerance if cfg.goal_tolerance is not None else cfg.robot.radius
-        self.reward_params = RewardParams()
+        self.reward_params = RewardParams(wall_proximity_distance=cfg.wall_proximity)
 
         # Static world: grid, planners (one A* for robots and people, per radius), task sampler.
         self.grid = OccupancyGrid.from_scene(self.scene, resolution=cfg.grid_resolution)
@@ -167,6 +168,11 @@ class NavEnv(ParallelEnv):
         self._planners: dict[float, AStarPlanner] = {}
         self.radius = np.array([cfg.robot.radius] * self.n_robots + [cfg.human_radius] * self.n_humans)
         self.is_robot = np.arange(self.n_total) < self.n_robots
+        # Robots' global planner (subgoals, geodesic progress), when the config asks for either.
+        self.robot_guide: RobotGuide | None = None
+        if self.n_robots and (cfg.robot_subgoal is not None or cfg.robot_progress == "geodesic"):
+            self.robot_guide = RobotGuide(self.grid, self.radius[: self.n_robots], cfg.robot_subgoal or 3.0,
+                                          clearance=cfg.path_clearance, spacing=cfg.path_spacing)
         # Set by navzoo.perception.PerceptionWrapper: {robot index: (positions, velocities, radii)} of the
         # people each robot perceives, read by the privileged baselines instead of the true people.
         self.perceived_people: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
@@ -328,6 +334,11 @@ class NavEnv(ParallelEnv):
         self.turn_taking = TurnTaking(H) if cfg.human_yielding and rp is None else None
 
         self.robots.reset(self.pos[:R], self.yaw[:R])
+        self.robot_subgoals = self.goal[:R].copy()  # what the robots' goal features point at
+        self.d_progress = self.d_goal[:R].copy()  # the distance behind the robots' progress reward
+        if self.robot_guide is not None:
+            self.robot_guide.reset(self.pos[:R], self.goal[:R])
+            self._update_robot_guide(np.ones(R, dtype=bool))
         if self.diffusion is not None:
             self.diffusion.seed = int(self.rng_crowd.integers(2**31))
             self.diffusion.reset(self)
@@ -502,7 +513,11 @@ class NavEnv(ParallelEnv):
         reached[:R] = robot_alive & (self.d_goal[:R] < self.goal_tolerance)
         collided = np.zeros(self.n_total, dtype=bool)
         collided[list(coll_kind)] = True
-        d_obs = self._clearance()
+        d_agents, d_walls = self._clearance_parts()
+        if cfg.wall_proximity is None:  # the paper: one clearance to everything
+            d_obs, d_walls_reward = np.minimum(d_agents, d_walls), None
+        else:
+            d_obs, d_walls_reward = d_agents, d_walls
         human_reached = self._retarget_humans()
         reached[R:] = human_reached
         new_yields = np.zeros(hum.size, dtype=bool)
@@ -517,9 +532,15 @@ class NavEnv(ParallelEnv):
         # After a re-target a pedestrian's distance jumps to its new goal: that step earns the goal
         # reward, not a progress penalty, so its previous distance is taken as the new one.
         d_prev = np.where(human_reached_mask(self.n_total, R, human_reached), self.d_goal, d_goal_prev)
+        d_now = self.d_goal
+        if self.robot_guide is not None and R:
+            d_prev, d_now = d_prev.copy(), d_now.copy()
+            d_prev[:R] = self.d_progress
+            self._update_robot_guide(robot_alive)
+            d_now[:R] = self.d_progress
         rew, terms = navigation_reward(
-            self.d_goal, d_prev, d_obs, reached, collided, np.where(self.is_robot, self.omega, 0.0),
-            self.reward_params,
+            d_now, d_prev, d_obs, reached, collided, np.where(self.is_robot, self.omega, 0.0),
+            self.reward_params, d_walls=d_walls_reward,
         )
         if self.amp is not None and hum.size:
             # Pedestrians' reward is the controller's task reward (r_tau + r_e + r_d); a learner adds
@@ -706,13 +727,33 @@ class NavEnv(ParallelEnv):
 
     def _clearance(self) -> np.ndarray:
         """d_obs: smallest edge-to-edge distance of each agent to any other live agent or obstacle."""
+        return np.minimum(*self._clearance_parts())
+
+    def _update_robot_guide(self, which: np.ndarray) -> None:
+        """Advance the robots' subgoals and progress distances (robots ``which``, a (R,) mask)."""
+        guide, cfg = self.robot_guide, self.config
+        idx = np.flatnonzero(which)
+        if guide is None or idx.size == 0:
+            return
+        if cfg.robot_subgoal is not None:
+            self.robot_subgoals[idx] = guide.subgoals(self.pos[idx], idx)
+        if cfg.robot_progress == "geodesic":
+            for i in idx:
+                geo = guide.geodesic(int(i), self.pos[i])
+                # Off the field (inside inflated space): fall back to the straight line for this step.
+                self.d_progress[i] = geo if np.isfinite(geo) else self.d_goal[i]
+        else:
+            self.d_progress[idx] = self.d_goal[idx]
+
+    def _clearance_parts(self) -> tuple[np.ndarray, np.ndarray]:
+        """(to other live agents, to walls and obstacles): edge-to-edge clearances of every agent."""
         vis = self.alive & self.present
         d = np.linalg.norm(self.pos[:, None, :] - self.pos[None, :, :], axis=2) - self.radius[:, None] - self.radius[None, :]
         d[:, ~vis] = np.inf
         np.fill_diagonal(d, np.inf)
         d_agents = d.min(axis=1) if self.n_total > 1 else np.full(self.n_total, np.inf)
         d_map = self.grid.distance_at(self.pos) - self.radius
-        return np.minimum(d_agents, d_map)
+        return d_agents, d_map
 
     def _advance_waypoints(self) -> None:
         tol = self.config.waypoint_tolerance
@@ -772,7 +813,12 @@ class NavEnv(ParallelEnv):
             if not agents:
                 return out
         idx = np.array([self._index[a] for a in agents], dtype=int)
-        goal = obs_terms.goal_features(self.pos[idx], self.yaw[idx], self.goal[idx])
+        target = self.goal[idx]
+        if self.config.robot_subgoal is not None:
+            rob = idx < self.n_robots
+            target = target.copy()
+            target[rob] = self.robot_subgoals[idx[rob]]
+        goal = obs_terms.goal_features(self.pos[idx], self.yaw[idx], target)
         vel = obs_terms.velocity_features(self.vel[idx], self.yaw[idx], self.omega[idx])
         feats, mask = obs_terms.neighbor_features(
             self.hist_pos, self.hist_vel, self.hist_yaw, self.hist_valid, self.radius, self.alive & self.present, idx,
@@ -795,6 +841,12 @@ class NavEnv(ParallelEnv):
         return {"action_clipped": int(self.action_clips[i]), "time": float(self.sim_time)}
 
     # ------------------------------------------------------------------ state for controllers
+    def agent_index(self, agent: str) -> int:
+        """Index of ``agent`` in the state arrays (robots first, then pedestrians)."""
+        if agent not in self._index:
+            raise KeyError(f"unknown agent {agent!r}; this env has {self.possible_agents}")
+        return self._index[agent]
+
     @property
     def present(self) -> np.ndarray:
         """(N,) bool: agents in the world (robots always; pedestrians unless absent, see ``human_active``)."""
