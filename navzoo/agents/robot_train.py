@@ -350,7 +350,9 @@ def load_policy(model_dir: str | Path | None = None, deterministic: bool = True,
     """Rebuild an exported policy from ``config.json`` and load ``policy.pt`` (sha256 checked, weights only).
 
     The returned :class:`~navzoo.agents.policy.SB3Policy` acts for the robots from their observations,
-    flat or Dict (converted to the form the network was trained on).
+    flat or Dict (converted to the form the network was trained on). A policy trained with subgoals
+    (``--robot-subgoal``) comes wrapped in a :class:`~navzoo.envs.subgoal.GuidedPolicy`, which plans
+    the subgoals itself in envs that do not.
 
     Args:
         model_dir: the folder written by :func:`export_policy` (default ``policies/transformer_ppo``).
@@ -408,7 +410,15 @@ def load_policy(model_dir: str | Path | None = None, deterministic: bool = True,
         raise ValueError(f"{weights} does not fit the architecture in {cfg_path}: {err}") from err
     policy = policy.to(device)
     policy.set_training_mode(False)
-    return SB3Policy(policy, deterministic=deterministic, obs_transform=_obs_converter(kind, k, t, c), name=name)
+    sb3 = SB3Policy(policy, deterministic=deterministic, obs_transform=_obs_converter(kind, k, t, c), name=name)
+    lookahead = ((cfg.get("training") or {}).get("env_overrides") or {}).get("robot_subgoal")
+    if lookahead is None:
+        return sb3
+    from navzoo.envs.subgoal import GuidedPolicy
+
+    if not (isinstance(lookahead, (int, float)) and math.isfinite(lookahead) and lookahead > 0):
+        raise ValueError(f"{cfg_path}: training.env_overrides.robot_subgoal must be a number > 0, got {lookahead!r}")
+    return GuidedPolicy(sb3, float(lookahead), flat_layout(k, t, c))
 
 
 def register_transformer_ppo(model_dir: str | Path | None = None) -> None:
@@ -749,6 +759,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--kinematics", default=None, choices=["diff_drive", "holonomic"],
                    help="robot kinematics for every scene (default: each scene's own; the CrowdNav presets are "
                         "holonomic, the others diff_drive)")
+    p.add_argument("--robot-subgoal", type=float, default=None, metavar="L",
+                   help="robots observe an A* subgoal at most L m ahead instead of their goal (NavConfig.robot_subgoal; "
+                        "for multi-room scenes); the exported policy keeps its own planner, so it runs in any env")
+    p.add_argument("--robot-progress", default=None, choices=["euclidean", "geodesic"],
+                   help="distance behind the reward's progress term (NavConfig.robot_progress; default: euclidean, "
+                        "the paper)")
+    p.add_argument("--wall-proximity", type=float, default=None, metavar="M",
+                   help="proximity-penalty distance to walls and obstacles (NavConfig.wall_proximity; default: the "
+                        "paper's 0.9 m, as to people)")
     p.add_argument("--total-steps", type=int, default=d.total_steps, help="total robot steps to reach (with resumed)")
     p.add_argument("--n-steps", type=int, default=d.n_steps, help="rollout length per vector entry (paper: 32)")
     p.add_argument("--n-epochs", type=int, default=d.n_epochs, help="PPO epochs per rollout (paper: 6)")
@@ -776,6 +795,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     return parser
 
 
+def _env_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """NavConfig overrides named by ``navzoo train robot``'s options (validated by NavConfig)."""
+    extra: dict[str, Any] = {}
+    if getattr(args, "kinematics", None):
+        extra["robot"] = {"kinematics": args.kinematics}
+    for opt in ("robot_subgoal", "robot_progress", "wall_proximity"):
+        if getattr(args, opt, None) is not None:
+            extra[opt] = getattr(args, opt)
+    if extra:
+        from navzoo.envs.config import NavConfig
+
+        NavConfig(**{k: v for k, v in extra.items() if k != "robot"})  # a bad value fails here, named
+    return extra
+
+
 def run_cli(args: argparse.Namespace, error: Callable[[str], Any] | None = None) -> int:
     """Run ``navzoo train robot`` from parsed options.
 
@@ -792,7 +826,7 @@ def run_cli(args: argparse.Namespace, error: Callable[[str], Any] | None = None)
             features_dim=args.features_dim, heads=args.heads, blocks=args.blocks,
             net_arch=tuple(args.net_arch), device=args.device, seed=args.seed, threads=args.threads,
             save_every=args.save_every, keep=args.keep, time_limit_s=args.time_limit_s,
-            extra={"robot": {"kinematics": args.kinematics}} if getattr(args, "kinematics", None) else {})
+            extra=_env_overrides(args))
         check_resume(targs)
     except ValueError as exc:
         if error is not None:
