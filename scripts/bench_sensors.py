@@ -7,10 +7,9 @@ Usage::
 Prints the median (and 10th / 90th percentile) milliseconds per call over ``--calls`` calls, one call
 per env step (the env is stepped with random robot actions between calls; stepping is not timed).
 
-``--egl`` renders with PyBullet's EGL plugin instead of TinyRenderer. The plugin must be loaded before
-the world is built, which NavEnv does not offer, so this script wraps ``navzoo.sim.connect`` to load it
-as the env connects. EGL does not draw the scene's polygon obstacles (see ``navzoo.sensors.render``), so
-its timings are indicative only.
+``--egl`` renders with PyBullet's EGL plugin instead of TinyRenderer (``NavConfig(egl=True)``: the
+plugin is loaded as the env connects and polygon obstacles get OBJ visual meshes, which EGL draws);
+it exits with a message where EGL is not available.
 """
 
 from __future__ import annotations
@@ -23,11 +22,9 @@ import time
 import numpy as np
 
 import navzoo
-from navzoo import sim
 from navzoo.sensors import (
     Lidar2D,
     default_robot_cameras,
-    enable_egl,
     render_camera,
     render_robot_cameras,
     render_robot_lidar,
@@ -41,19 +38,10 @@ def main() -> None:
     ap.add_argument("--egl", action="store_true", help="render with the EGL plugin (see above)")
     args = ap.parse_args()
 
-    renderer = "TinyRenderer"
-    if args.egl:
-        connect = sim.connect
-
-        def connect_with_egl(gui: bool = False) -> int:
-            cid = connect(gui)
-            if not enable_egl(cid):
-                raise SystemExit("EGL is not available here")
-            return cid
-
-        sim.connect = connect_with_egl
-        renderer = "EGL"
-    env = navzoo.make(args.env)  # robots learnable, people on the default crowd model
+    renderer = "EGL" if args.egl else "TinyRenderer"
+    env = navzoo.make(args.env, egl=args.egl)  # robots learnable, people on the default crowd model
+    if args.egl and not env.unwrapped.egl:
+        raise SystemExit("EGL is not available here")
     base = env.unwrapped
     env.reset(seed=0)
     rng = np.random.default_rng(0)

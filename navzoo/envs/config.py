@@ -101,6 +101,9 @@ class NavConfig:
         waypoint_tolerance: a pedestrian moves on to its next waypoint within this distance (m).
         grid_resolution: occupancy grid cell size (m).
         max_episode_steps_override: hard cap on steps, mainly for tests; ``None`` = from time limit.
+        egl: load PyBullet's EGL renderer on the env's client (robot cameras then render with OpenGL: a
+            GPU, or Mesa's llvmpipe on CPU; polygon obstacles get OBJ visual meshes, which EGL needs).
+            Falls back to TinyRenderer with a warning where EGL is not available.
     """
 
     scene: str = "circle_crossing"
@@ -140,6 +143,7 @@ class NavConfig:
     waypoint_tolerance: float = 0.6
     grid_resolution: float = 0.1
     max_episode_steps_override: int | None = None
+    egl: bool = False
 
     def __post_init__(self) -> None:
         def bad(name: str, expected: str) -> ValueError:
@@ -210,6 +214,8 @@ class NavConfig:
             raise bad("max_episode_steps_override", "None or an integer >= 1")
         if not isinstance(self.flat_obs, bool):
             raise bad("flat_obs", "a bool")
+        if not isinstance(self.egl, bool):
+            raise bad("egl", "a bool")
 
     def _validate_replay(self) -> None:
         from navzoo.agents.replay import SCENE_PREFIX, canonical_recording, load_recording

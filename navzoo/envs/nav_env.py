@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -199,7 +200,24 @@ class NavEnv(ParallelEnv):
         self.client = sim.connect(gui=(render_mode == "human"))
         p.setGravity(0, 0, -9.81, physicsClientId=self.client)
         p.setTimeStep(cfg.dt / cfg.physics_substeps, physicsClientId=self.client)
-        self.bodies = build_scene(self.scene, self.client)
+        # Cameras render with EGL only if its plugin is loaded before the first body exists.
+        self.egl = False
+        if cfg.egl:
+            from navzoo.sensors.render import enable_egl
+
+            self.egl = enable_egl(self.client)
+            if not self.egl:
+                warnings.warn("NavConfig.egl: PyBullet's EGL renderer is not available here (no eglRenderer "
+                              "plugin or no OpenGL context); cameras use TinyRenderer", RuntimeWarning, stacklevel=2)
+        if self.egl:
+            from navzoo.sensors.render import quiet
+
+            # The EGL plugin reports, from C, every collision-only mesh piece (the convex parts of a
+            # concave polygon) that it cannot draw; they have no visual shape and are not drawn anyway.
+            with quiet():
+                self.bodies = build_scene(self.scene, self.client, mesh_files=True)
+        else:
+            self.bodies = build_scene(self.scene, self.client)
         # PyBullet pairs collide when *either* body's group matches the other's mask (filter mode
         # OR), so the scene's bodies must leave the kinematic humans out of their mask: scripted
         # people do not collide with the scene or each other, only with robots.
@@ -898,6 +916,10 @@ class NavEnv(ParallelEnv):
 
     def close(self) -> None:
         if getattr(self, "client", None) is not None:
+            if getattr(self, "egl", False):
+                from navzoo.sensors.render import forget_egl
+
+                forget_egl(self.client)
             sim.disconnect(self.client)
             self.client = None
 

@@ -30,6 +30,7 @@ from navzoo.sensors.lidar import Lidar2D, LidarScan, render_robot_lidar
 from navzoo.sensors.render import (
     CameraImages,
     egl_enabled,
+    egl_works,
     enable_egl,
     forget_egl,
     render_camera,
@@ -48,6 +49,7 @@ __all__ = [
     "PinholeCamera",
     "default_robot_cameras",
     "egl_enabled",
+    "egl_works",
     "enable_egl",
     "forget_egl",
     "occlusion_visible",

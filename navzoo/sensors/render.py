@@ -37,13 +37,15 @@ How the images are made:
   ``RuntimeError``. Which clients have EGL is recorded here by client id; PyBullet reuses the ids of
   disconnected clients, so call :func:`forget_egl` when disconnecting an EGL client. A NavEnv builds
   its world when it is constructed, so EGL cannot be enabled on ``env.client`` afterwards (it stays on
-  TinyRenderer, with a warning). Limits of the EGL plugin measured with pybullet 3.2.7 and Mesa's
-  llvmpipe: it does not draw visual shapes made from vertex data (``createVisualShape(GEOM_MESH,
-  vertices=...)``, which the navzoo world builder uses for polygon obstacles; it prints "issue
-  extracting mesh from COLLADA/STL file"), and its depth is quantised (with near 0.05 m and far 30 m:
+  TinyRenderer, with a warning): ask for it with ``NavConfig(egl=True)``, which loads the plugin as the
+  env connects (and forgets it on ``close``). Limits of the EGL plugin measured with pybullet 3.2.7 and
+  Mesa's llvmpipe: it does not draw visual shapes made from vertex data (``createVisualShape(GEOM_MESH,
+  vertices=...)``; it prints "issue extracting mesh from COLLADA/STL file"), so with ``egl=True`` the
+  world builder gives polygon obstacles OBJ files instead, and its depth is quantised (with near 0.05 m and far 30 m:
   errors of 0.4 mm at 2 m, 6 mm at 10 m and 4 cm at 20 m; TinyRenderer's: 0.07 mm at 10 m), so
-  TinyRenderer is the reference and EGL a faster option for worlds made of primitives, URDFs and mesh
-  files.
+  TinyRenderer is the reference and EGL a faster option (on the 2-core VM, 81 against 121 ms per
+  640 x 480 image; ``scripts/bench_sensors.py``). Where the plugin exists but no EGL driver does, it
+  ends the process on loading; :func:`egl_works` tries it in a child process first.
 """
 
 from __future__ import annotations
@@ -68,6 +70,7 @@ __all__ = [
     "RENDERERS",
     "CameraImages",
     "egl_enabled",
+    "egl_works",
     "enable_egl",
     "forget_egl",
     "hidden_bodies",
@@ -115,6 +118,49 @@ def _check_client(client: int) -> int:
     return cid
 
 
+_EGL_PROBE = """
+import importlib.util, sys
+import pybullet as p
+spec = importlib.util.find_spec("eglRenderer")
+if spec is None or not spec.origin:
+    sys.exit(3)
+cid = p.connect(p.DIRECT)
+if p.loadPlugin(spec.origin, "_eglRendererPlugin", physicsClientId=cid) < 0:
+    sys.exit(4)
+p.getCameraImage(8, 8, renderer=p.ER_BULLET_HARDWARE_OPENGL, physicsClientId=cid)
+print("navzoo-egl-ok")
+"""
+_EGL_WORKS: bool | None = None
+
+
+def egl_works() -> bool:
+    """Whether PyBullet's EGL plugin can render on this machine, tried once per process in a child process.
+
+    The plugin does not fail gracefully everywhere: where its module exists but no EGL driver does
+    (measured on the H100 device machine, whose image has no ``libEGL``), loading it prints "failed to
+    EGL with glad." and ends the whole process. So the first call loads it in a short-lived Python child
+    (about 0.5 s) and caches the answer; :func:`enable_egl` asks here before loading it in this process.
+    """
+    global _EGL_WORKS
+    if _EGL_WORKS is None:
+        import subprocess
+        import sys
+
+        try:
+            spec = importlib.util.find_spec("eglRenderer")
+        except (ImportError, ValueError):
+            spec = None
+        if spec is None or not spec.origin:
+            _EGL_WORKS = False
+        else:
+            try:
+                run = subprocess.run([sys.executable, "-c", _EGL_PROBE], capture_output=True, text=True, timeout=60)
+                _EGL_WORKS = run.returncode == 0 and "navzoo-egl-ok" in run.stdout
+            except (OSError, subprocess.TimeoutExpired):
+                _EGL_WORKS = False
+    return _EGL_WORKS
+
+
 def enable_egl(client: int) -> bool:
     """Load PyBullet's ``eglRenderer`` plugin on a client, for ``renderer="egl"`` / ``"auto"``.
 
@@ -124,7 +170,8 @@ def enable_egl(client: int) -> bool:
     ``unloadPlugin`` crashes pybullet 3.2.7). A client that already holds bodies is therefore left alone:
     a ``RuntimeWarning`` and False.
 
-    Safe where EGL is missing: the plugin module not being installed, the plugin failing to load, or a
+    Safe where EGL is missing: the plugin module not being installed, the plugin failing to load (tried
+    first in a child process, :func:`egl_works`, because on some machines it ends the process), or a
     test render failing all return False and leave the client on TinyRenderer. Calling it again on a
     client that has EGL returns True. The plugin's driver report (printed from C code) is silenced.
 
@@ -150,7 +197,7 @@ def enable_egl(client: int) -> bool:
         spec = importlib.util.find_spec("eglRenderer")
     except (ImportError, ValueError):
         spec = None
-    if spec is None or not spec.origin:
+    if spec is None or not spec.origin or not egl_works():
         return False
     try:
         with quiet():

@@ -13,7 +13,12 @@ bodies' own masks (e.g. a robot with mask ``GROUP_STATIC | GROUP_ROBOT | GROUP_H
 
 from __future__ import annotations
 
+import atexit
+import hashlib
+import shutil
+import tempfile
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pybullet as p
@@ -102,7 +107,48 @@ def _prism_mesh(poly: np.ndarray, height: float) -> tuple[list[list[float]], lis
     return verts.tolist(), idx
 
 
-def _add_polygon(obs: PolygonObstacle, client_id: int, rgba: tuple[float, ...]) -> int:
+_MESH_DIR: Path | None = None
+
+
+def _mesh_dir() -> Path:
+    """A per-process folder for OBJ files of polygon prisms, removed at exit."""
+    global _MESH_DIR
+    if _MESH_DIR is None:
+        _MESH_DIR = Path(tempfile.mkdtemp(prefix="navzoo_meshes_"))
+        atexit.register(shutil.rmtree, _MESH_DIR, True)
+    return _MESH_DIR
+
+
+def prism_obj(verts: list[list[float]], idx: list[int]) -> str:
+    """Wavefront OBJ text of a triangle mesh, with one flat normal per face (for PyBullet's EGL renderer)."""
+    v = np.asarray(verts, dtype=np.float64)
+    lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in v]
+    faces = []
+    for t in range(0, len(idx), 3):
+        a, b, c = idx[t:t + 3]
+        n = np.cross(v[b] - v[a], v[c] - v[a])
+        n = n / max(float(np.linalg.norm(n)), 1e-12)
+        lines.append(f"vn {n[0]:.6f} {n[1]:.6f} {n[2]:.6f}")
+        k = t // 3 + 1
+        faces.append(f"f {a + 1}//{k} {b + 1}//{k} {c + 1}//{k}")
+    return "\n".join(lines + faces) + "\n"
+
+
+def _visual_mesh(verts: list[list[float]], idx: list[int], rgba: tuple[float, ...], client_id: int,
+                 as_file: bool) -> int:
+    if not as_file:
+        return p.createVisualShape(p.GEOM_MESH, vertices=verts, indices=idx, rgbaColor=rgba,
+                                   physicsClientId=client_id)
+    text = prism_obj(verts, idx)
+    path = _mesh_dir() / f"prism_{hashlib.sha1(text.encode()).hexdigest()[:16]}.obj"
+    if not path.is_file():
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(text)
+        tmp.replace(path)
+    return p.createVisualShape(p.GEOM_MESH, fileName=str(path), rgbaColor=rgba, physicsClientId=client_id)
+
+
+def _add_polygon(obs: PolygonObstacle, client_id: int, rgba: tuple[float, ...], mesh_files: bool = False) -> int:
     """A polygon prism: one convex hull when convex, otherwise one convex prism per ear-clipping triangle
     as links of a single fixed multibody (convex pieces collide robustly with every dynamic shape, unlike a
     concave triangle mesh), with the whole prism as the visual mesh of the base."""
@@ -110,7 +156,7 @@ def _add_polygon(obs: PolygonObstacle, client_id: int, rgba: tuple[float, ...]) 
     center = poly.mean(axis=0)
     local = poly - center
     verts, idx = _prism_mesh(local, obs.height)
-    vis = p.createVisualShape(p.GEOM_MESH, vertices=verts, indices=idx, rgbaColor=rgba, physicsClientId=client_id)
+    vis = _visual_mesh(verts, idx, rgba, client_id, mesh_files)
     if _is_convex(local):
         col = p.createCollisionShape(p.GEOM_MESH, vertices=verts, physicsClientId=client_id)
         return p.createMultiBody(0.0, col, vis, [center[0], center[1], 0.0], physicsClientId=client_id)
@@ -156,7 +202,7 @@ def _add_box(center: tuple[float, float], size: tuple[float, float], yaw: float,
     return p.createMultiBody(0.0, col, vis, [center[0], center[1], 0.5 * height], quat, physicsClientId=client_id)
 
 
-def _add_obstacle(obs: Obstacle, client_id: int) -> int:
+def _add_obstacle(obs: Obstacle, client_id: int, mesh_files: bool = False) -> int:
     rgba = COLORS[obs.type]
     if isinstance(obs, BoxObstacle):
         return _add_box(obs.center, obs.size, obs.yaw, obs.height, client_id, rgba)
@@ -172,7 +218,7 @@ def _add_obstacle(obs: Obstacle, client_id: int) -> int:
         pos = [obs.center[0], obs.center[1], 0.5 * obs.height]
         return p.createMultiBody(0.0, col, vis, pos, physicsClientId=client_id)
     if isinstance(obs, PolygonObstacle):
-        return _add_polygon(obs, client_id, rgba)
+        return _add_polygon(obs, client_id, rgba, mesh_files)
     raise TypeError(f"unsupported obstacle {obs!r}")  # pragma: no cover - Scene validates types
 
 
@@ -181,7 +227,7 @@ def _set_static_filter(body: int, client_id: int) -> None:
         p.setCollisionFilterGroupMask(body, link, GROUP_STATIC, MASK_ALL, physicsClientId=client_id)
 
 
-def build_scene(scene: Scene, client_id: int, ground: bool = True) -> SceneBodies:
+def build_scene(scene: Scene, client_id: int, ground: bool = True, mesh_files: bool = False) -> SceneBodies:
     """Create the scene's static bodies (mass 0) in physics client ``client_id``.
 
     Boxes and walls become ``GEOM_BOX`` bodies, circles ``GEOM_CYLINDER`` bodies, and polygons extruded
@@ -193,6 +239,8 @@ def build_scene(scene: Scene, client_id: int, ground: bool = True) -> SceneBodie
         scene: the scene to build.
         client_id: an open PyBullet client (the implicit default client is never used).
         ground: also create the ground plane.
+        mesh_files: give polygon prisms their visual mesh as an OBJ file (in a per-process temporary
+            folder) instead of vertex data; PyBullet's EGL renderer draws only the former.
 
     Returns:
         The created body ids.
@@ -212,7 +260,7 @@ def build_scene(scene: Scene, client_id: int, ground: bool = True) -> SceneBodie
         )
         _set_static_filter(bodies.ground_id, client_id)
     for obs in scene.obstacles:
-        body = _add_obstacle(obs, client_id)
+        body = _add_obstacle(obs, client_id, mesh_files)
         _set_static_filter(body, client_id)
         bodies.obstacle_ids.append(body)
     return bodies

@@ -369,3 +369,75 @@ def test_render_robot_cameras_defaults_and_validation(lobby) -> None:
         render_robot_cameras(env, 0, [tilted], hfov=3)
     with pytest.raises(TypeError, match="NavEnv"):
         render_robot_cameras(object(), 0)
+
+
+# -------------------------------------------------------------------------- NavEnv with EGL (egl=True)
+def test_prism_obj_has_outward_flat_normals() -> None:
+    from navzoo.world.builder import _prism_mesh, prism_obj
+
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]) - 0.5
+    verts, idx = _prism_mesh(square, 2.0)
+    text = prism_obj(verts, idx).splitlines()
+    v = np.array([[float(t) for t in line.split()[1:]] for line in text if line.startswith("v ")])
+    vn = np.array([[float(t) for t in line.split()[1:]] for line in text if line.startswith("vn ")])
+    faces = [line for line in text if line.startswith("f ")]
+    assert len(v) == 8 and len(faces) == len(vn) == len(idx) // 3 == 12
+    np.testing.assert_allclose(np.linalg.norm(vn, axis=1), 1.0, atol=1e-6)
+    for face, n in zip(faces, vn, strict=True):  # every normal points away from the prism's centre
+        corners = [int(tok.split("//")[0]) - 1 for tok in face.split()[1:]]
+        centre = v[corners].mean(axis=0) - np.array([0.0, 0.0, 1.0])
+        assert float(centre @ n) > 0
+
+
+def test_navenv_egl_draws_what_tinyrenderer_draws() -> None:
+    """Polygon obstacles (OBJ visual meshes with egl=True) render alike with EGL and with TinyRenderer;
+    with vertex-data meshes EGL would leave them out (0 pixels)."""
+    from navzoo.world.scene import PolygonObstacle
+
+    cam = default_robot_cameras(W, H)[0]
+    views, polygons = {}, set()
+    for egl in (False, True):
+        env = navzoo.make(scene="cafe", raw=True, n_humans=0, egl=egl)
+        if egl and not env.egl:
+            env.close()
+            pytest.skip("EGL is not available on this machine")
+        polygons = {b for b, o in zip(env.bodies.obstacle_ids, env.scene.obstacles, strict=True)
+                    if isinstance(o, PolygonObstacle)}
+        env.reset(seed=2)
+        views[egl] = [render_camera(env.client, cam, (env.pos[0, 0], env.pos[0, 1], env.yaw[0] + k * np.pi / 4),
+                                    hide_body_ids=[env.robots.ids[0]]) for k in range(8)]
+        assert egl_enabled(env.client) == egl
+        client = env.client
+        env.close()
+        assert not egl_enabled(client)  # closing forgets the client's EGL record
+    tiny_seg = np.stack([v.segmentation for v in views[False]])
+    egl_seg = np.stack([v.segmentation for v in views[True]])
+    on_polygons = np.isin(tiny_seg, list(polygons))
+    assert on_polygons.sum() > 1000
+    assert abs(int(np.isin(egl_seg, list(polygons)).sum()) - int(on_polygons.sum())) < 0.01 * on_polygons.sum()
+    assert np.mean(tiny_seg == egl_seg) > 0.99
+    tiny_d = np.stack([v.depth for v in views[False]])
+    egl_d = np.stack([v.depth for v in views[True]])
+    both = np.isfinite(tiny_d) & np.isfinite(egl_d)
+    assert np.median(np.abs(tiny_d[both] - egl_d[both])) < 0.01
+
+
+def test_navenv_egl_falls_back_with_a_warning(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(render_mod.importlib.util, "find_spec", lambda name: None)
+    with pytest.warns(RuntimeWarning, match="EGL renderer is not available"):
+        env = navzoo.make("navzoo/Home-v0", raw=True, n_humans=0, egl=True)
+    assert env.egl is False and not egl_enabled(env.client)
+    env.close()
+    with pytest.raises(ValueError, match="egl must be a bool"):
+        navzoo.make("navzoo/Home-v0", egl="yes")
+
+
+def test_an_egl_plugin_that_ends_its_process_is_caught(client: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where the plugin exits the process (no EGL driver), the probe child dies instead of the caller."""
+    monkeypatch.setattr(render_mod, "_EGL_WORKS", None)
+    monkeypatch.setattr(render_mod, "_EGL_PROBE", "import os; print('failed to EGL with glad.'); os._exit(1)")
+    monkeypatch.setattr(render_mod.importlib.util, "find_spec", lambda name: type("S", (), {"origin": "x.so"})())
+    assert render_mod.egl_works() is False
+    assert enable_egl(client) is False and not egl_enabled(client)
+    monkeypatch.setattr(render_mod, "_EGL_PROBE", "raise SystemExit(0)")  # cached: not asked again
+    assert render_mod.egl_works() is False
