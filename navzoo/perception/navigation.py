@@ -18,11 +18,22 @@ __all__ = ["compare", "run_episode"]
 
 def run_episode(method: str, scene: str, seed: int, perceived: bool, crowd_model: str = "orca",
                 model_dir: str | None = None) -> dict[str, Any]:
-    """One episode; returns ``event``, ``min_distance_m``, ``time_s``."""
+    """One episode; returns ``event``, ``min_distance_m``, ``time_s``.
+
+    ``scene`` is a library scene (with ``crowd_model`` people) or a registered env id such as
+    ``navzoo/CircleCrossing-v0`` (its preset, crowd included). A method's ``-diffdrive`` /
+    ``-holonomic`` suffix sets the robot's kinematics, as in the benchmark.
+    """
     import navzoo
     from navzoo.agents.baselines import make_policy
+    from navzoo.benchmark.runner import method_kinematics
 
-    env = navzoo.make(None, scene=scene, n_robots=1, crowd_model=crowd_model)
+    kin = method_kinematics(method)
+    robot = {"robot": {"kinematics": kin}} if kin else {}
+    if scene.startswith("navzoo/"):
+        env = navzoo.make(scene, n_robots=1, **robot)
+    else:
+        env = navzoo.make(None, scene=scene, n_robots=1, crowd_model=crowd_model, **robot)
     if perceived:
         from navzoo.perception.monoloco import load_estimator
         from navzoo.perception.pipeline import RobotPerception
