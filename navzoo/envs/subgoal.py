@@ -207,10 +207,12 @@ class GuidedPolicy:
             self.guide = None
             return
         R = env.n_robots
-        self.guide = RobotGuide(env.grid, env.radius[:R], self.lookahead, clearance=env.config.path_clearance,
-                                spacing=env.config.path_spacing)
+        if self.guide is None or self._env_id != id(env) or self.guide.grid is not env.grid:
+            # A new world: new planners (their inflated grids are built once and kept for its episodes).
+            self.guide = RobotGuide(env.grid, env.radius[:R], self.lookahead, clearance=env.config.path_clearance,
+                                    spacing=env.config.path_spacing)
+            self._env_id = id(env)
         self.guide.reset(env.pos[:R], env.goal[:R])
-        self._env_id = id(env)
 
     def act(self, observations: Mapping[str, Any], env: NavEnv) -> dict[str, np.ndarray]:
         from navzoo.envs import observations as obs_terms
