@@ -173,7 +173,8 @@ class NavEnv(ParallelEnv):
         self.robot_guide: RobotGuide | None = None
         if self.n_robots and (cfg.robot_subgoal is not None or cfg.robot_progress == "geodesic"):
             self.robot_guide = RobotGuide(self.grid, self.radius[: self.n_robots], cfg.robot_subgoal or 3.0,
-                                          clearance=cfg.path_clearance, spacing=cfg.path_spacing)
+                                          clearance=cfg.path_clearance, spacing=cfg.path_spacing,
+                                          planners=self._planners)
         # Set by navzoo.perception.PerceptionWrapper: {robot index: (positions, velocities, radii)} of the
         # people each robot perceives, read by the privileged baselines instead of the true people.
         self.perceived_people: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
@@ -742,10 +743,6 @@ class NavEnv(ParallelEnv):
         if near.any():
             out[near] = swept_circle_hits_segments(p0[near], p1[near], radius[near], self.segments)
         return out
-
-    def _clearance(self) -> np.ndarray:
-        """d_obs: smallest edge-to-edge distance of each agent to any other live agent or obstacle."""
-        return np.minimum(*self._clearance_parts())
 
     def _update_robot_guide(self, which: np.ndarray) -> None:
         """Advance the robots' subgoals and progress distances (robots ``which``, a (R,) mask)."""

@@ -72,10 +72,12 @@ class RobotGuide:
         clearance: extra inflation when planning, as ``NavConfig.path_clearance`` (falls back to the
             bare radius where a passage is too narrow).
         spacing: spacing of path points (m).
+        planners: a dict of :class:`AStarPlanner` by radius to share (an env's own), so that each
+            inflated grid is built once; default a private one.
     """
 
     def __init__(self, grid: OccupancyGrid, radii: np.ndarray, lookahead: float, clearance: float = 0.2,
-                 spacing: float = 0.5) -> None:
+                 spacing: float = 0.5, planners: dict[float, AStarPlanner] | None = None) -> None:
         if not (np.isfinite(lookahead) and lookahead > 0):
             raise ValueError(f"RobotGuide lookahead must be a finite number > 0 (m), got {lookahead!r}")
         self.grid = grid
@@ -83,7 +85,7 @@ class RobotGuide:
         self.lookahead = float(lookahead)
         self.clearance = float(clearance)
         self.spacing = float(spacing)
-        self._planners: dict[float, AStarPlanner] = {}
+        self._planners: dict[float, AStarPlanner] = {} if planners is None else planners
         self.paths: list[np.ndarray] = []
         self.index = np.zeros(0, dtype=int)
         self.goals = np.zeros((0, 2))
