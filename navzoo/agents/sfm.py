@@ -307,6 +307,7 @@ def social_forces(
     others_vel: np.ndarray | None = None,
     others_radius: np.ndarray | float | None = None,
     segment_groups: np.ndarray | None = None,
+    wall_radius: np.ndarray | float | None = None,
 ) -> SocialForces:
     """Force components (accelerations) acting on N people.
 
@@ -324,6 +325,8 @@ def social_forces(
         others_radius: Their radii, (K,) or a scalar; None means 0.3 m.
         segment_groups: (M,) id of the wall (obstacle) each segment belongs to, contiguous per
             wall; each wall then pushes once, from its nearest point. None: every segment is a wall.
+        wall_radius: Radii (N,) or a scalar that walls see, when they differ from ``radius`` (a body
+            kept farther from people than from walls); None means ``radius``.
 
     Returns:
         The goal, people, robots and walls components, each (N, 2) m/s^2.
@@ -354,7 +357,8 @@ def social_forces(
     groups = None if segment_groups is None else np.asarray(segment_groups)
     if groups is not None and groups.shape != (seg.shape[0],):
         raise ValueError(f"segment_groups must have shape ({seg.shape[0]},), got {groups.shape}")
-    walls = _wall_forces(pos, radius, seg, params, groups)
+    w_rad = radius if wall_radius is None else _scalars("wall_radius", wall_radius, n)
+    walls = _wall_forces(pos, w_rad, seg, params, groups)
     return SocialForces(goal=goal, people=people, robots=robots, walls=walls)
 
 
@@ -371,6 +375,7 @@ def social_force_velocities(
     others_vel: np.ndarray | None = None,
     others_radius: np.ndarray | float | None = None,
     segment_groups: np.ndarray | None = None,
+    wall_radius: np.ndarray | float | None = None,
 ) -> np.ndarray:
     """New velocities of N people after integrating the social force over one step.
 
@@ -393,6 +398,8 @@ def social_force_velocities(
         others_vel: Robots' velocities, (K, 2); None means standing still.
         others_radius: Robots' radii, (K,) or a scalar; None means 0.3 m.
         segment_groups: (M,) wall id of each segment (see :func:`social_forces`).
+        wall_radius: Radii seen by the walls (their forces and the contact constraint), (N,) or a
+            scalar; None means ``radius`` (see :func:`social_forces`).
 
     Returns:
         New velocities, (N, 2) m/s, with speed <= max_speed.
@@ -415,6 +422,7 @@ def social_force_velocities(
             others_vel = _points("others_vel", others_vel, others_pos.shape[0])
 
     radius_arr = _scalars("radius", radius, n)
+    wall_radius_arr = radius_arr if wall_radius is None else _scalars("wall_radius", wall_radius, n)
     seg = _segments(segments)
     groups = np.arange(seg.shape[0]) if segment_groups is None else np.asarray(segment_groups)
     # The exponential potentials are stiff at body contact (range B = 0.3 m against closing
@@ -425,7 +433,7 @@ def social_force_velocities(
     for _ in range(n_sub):
         forces = social_forces(
             pos, vel, pref_vel, radius, params, segments, others_pos, others_vel, others_radius,
-            segment_groups,
+            segment_groups, wall_radius_arr,
         )
         total = forces.total
         norm = np.linalg.norm(total, axis=1, keepdims=True)
@@ -433,7 +441,7 @@ def social_force_velocities(
         vel = vel + h * total
         speed = np.linalg.norm(vel, axis=1, keepdims=True)
         vel = vel * np.minimum(1.0, max_speed[:, None] / np.maximum(speed, _EPS))
-        vel = _wall_contact(pos, vel, h, radius_arr, seg, groups)
+        vel = _wall_contact(pos, vel, h, wall_radius_arr, seg, groups)
         if n_sub > 1:
             pos = pos + h * vel
             if has_others and others_vel is not None:

@@ -20,7 +20,7 @@ from navzoo.agents.robot import RobotBodies, command_velocity, wrap_angle
 from navzoo.agents.yielding import TurnTaking
 from navzoo.envs import observations as obs_terms
 from navzoo.envs.amp_humans import PLAN_MARGIN as AMP_PLAN_MARGIN
-from navzoo.envs.amp_humans import AmpHumans
+from navzoo.envs.amp_humans import WAYPOINT_LOOKAHEAD, AmpHumans, advance_waypoint
 from navzoo.envs.config import NavConfig
 from navzoo.envs.rewards import TERMS, RewardParams, navigation_reward
 from navzoo.envs.subgoal import RobotGuide
@@ -773,9 +773,8 @@ class NavEnv(ParallelEnv):
     def _advance_waypoints(self) -> None:
         tol = self.config.waypoint_tolerance
         for i in range(self.n_total):
-            path = self.paths[i]
-            while self.wp_index[i] < len(path) - 1 and np.linalg.norm(path[self.wp_index[i]] - self.pos[i]) < tol:
-                self.wp_index[i] += 1
+            ahead = WAYPOINT_LOOKAHEAD if self.amp is not None and i >= self.n_robots else 0
+            self.wp_index[i] = advance_waypoint(self.paths[i], int(self.wp_index[i]), self.pos[i], tol, ahead)
 
     def human_preferred_velocity(self, yielding: bool = True, t: float | None = None,
                                  slow_radius: float = 0.5) -> np.ndarray:

@@ -1,0 +1,107 @@
+"""Ablation of how physics (AMP) pedestrians' target trajectories are made, on the following protocol.
+
+Runs :func:`navzoo.benchmark.pedestrians.follow_scene` (8 scenes, 3-15 people, social-force targets)
+once per configuration and scene, in parallel processes, and appends one JSON row per run to
+``--out`` (rows already there are skipped, so an interrupted run resumes). A configuration is
+``NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD`` and sets, in every worker,
+``navzoo.envs.amp_humans.PLAN_MARGIN`` (people and A* inflation), ``WALL_PLAN_MARGIN`` (walls in the
+social-force rollouts) and ``WAYPOINT_LOOKAHEAD`` (0 = waypoints in strict order).
+
+    python scripts/amp_target_ablation.py --configs before:0.1:0.1:0,now:0.1:0:4 --seconds 200 \
+        --workers 16 --out docs/results/amp_target_ablation.jsonl
+    python scripts/amp_target_ablation.py --summary docs/results/amp_target_ablation.jsonl
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import sys
+from pathlib import Path
+
+
+def parse_config(text: str) -> dict:
+    parts = text.split(":")
+    if len(parts) != 4:
+        raise ValueError(f"a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD, got {text!r}")
+    name, plan, wall, ahead = parts
+    cfg = {"name": name, "plan_margin": float(plan), "wall_margin": float(wall), "lookahead": int(ahead)}
+    if cfg["plan_margin"] < 0 or cfg["wall_margin"] < 0 or cfg["lookahead"] < 0:
+        raise ValueError(f"margins and lookahead must be >= 0, got {text!r}")
+    return cfg
+
+
+def _run(job: tuple[dict, str, int, float, int]) -> dict:
+    import os
+
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    cfg, scene, n, seconds, seed = job
+    import navzoo.envs.amp_humans as ah
+    import navzoo.envs.nav_env as ne
+
+    ah.PLAN_MARGIN = ne.AMP_PLAN_MARGIN = cfg["plan_margin"]
+    ah.WALL_PLAN_MARGIN = cfg["wall_margin"]
+    ah.WAYPOINT_LOOKAHEAD = ne.WAYPOINT_LOOKAHEAD = cfg["lookahead"]
+    from navzoo.benchmark.pedestrians import follow_scene
+
+    row = follow_scene(scene, n, seconds, seed)
+    row.pop("poses")
+    return {"config": cfg["name"], **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead")},
+            "seed": seed, **row}
+
+
+def summary(path: str) -> str:
+    rows = [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+    keys = ("success", "off_path", "fall", "timeout")
+    lines = ["| configuration | trips | success | off path | fall | timeout | map contact | agent contact | path error (m) |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for name in dict.fromkeys(r["config"] for r in rows):
+        rs = [r for r in rows if r["config"] == name]
+        n = sum(r[k] for r in rs for k in keys)
+        err = sum(r["err_sum"] for r in rs) / max(1, sum(r["err_n"] for r in rs))
+        share = {k: sum(r[k] for r in rs) / max(1, n) for k in (*keys, "map_trips", "agent_trips")}
+        lines.append(f"| {name} ({len(rs)} scenes) | {n} | {share['success']:.3f} | {share['off_path']:.3f} | "
+                     f"{share['fall']:.3f} | {share['timeout']:.3f} | {share['map_trips']:.3f} | "
+                     f"{share['agent_trips']:.3f} | {err:.3f} |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--configs", default="before:0.1:0.1:0,now:0.1:0:4")
+    ap.add_argument("--seconds", type=float, default=200.0)
+    ap.add_argument("--seeds", default="0")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--out", default="amp_target_ablation.jsonl")
+    ap.add_argument("--summary", metavar="JSONL", help="print the table of a result file and exit")
+    args = ap.parse_args(argv)
+    if args.summary:
+        print(summary(args.summary))
+        return 0
+    from navzoo.benchmark.pedestrians import SCENES, people_per_scene
+
+    configs = [parse_config(c) for c in args.configs.split(",")]
+    seeds = [int(s) for s in args.seeds.split(",")]
+    out = Path(args.out)
+    done = set()
+    if out.is_file():
+        for line in out.read_text().splitlines():
+            if line.strip():
+                r = json.loads(line)
+                done.add((r["config"], r["scene"], r["seed"]))
+    people = dict(zip(SCENES, people_per_scene(len(SCENES)), strict=True))
+    jobs = [(c, s, people[s], args.seconds, seed) for seed in seeds for s in SCENES for c in configs
+            if (c["name"], s, seed) not in done]
+    jobs.sort(key=lambda j: -j[2])  # crowded scenes first: they take longest
+    print(f"{len(jobs)} runs ({len(done)} already in {out})", file=sys.stderr, flush=True)
+    with mp.get_context("spawn").Pool(args.workers, maxtasksperchild=1) as pool, out.open("a") as f:
+        for row in pool.imap_unordered(_run, jobs):
+            f.write(json.dumps(row) + "\n")
+            f.flush()
+    print(summary(str(out)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,78 @@
+"""Target trajectories of physics pedestrians: waypoints a pushed body skipped, and door jambs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from navzoo.agents.sfm import SocialForceParams, social_force_velocities, social_forces
+from navzoo.envs.amp_humans import WAYPOINT_LOOKAHEAD, advance_waypoint
+
+PATH = np.stack([np.arange(10) * 0.5, np.zeros(10)], axis=1)  # waypoints 0.5 m apart along x
+
+
+def test_strict_order_without_lookahead():
+    # Beside waypoint 4 but 1.0 m from waypoint 2: the strict rule keeps heading for waypoint 2.
+    assert advance_waypoint(PATH, 2, np.array([2.0, 0.3]), tol=0.6, lookahead=0) == 2
+    # Within the tolerance of the current waypoint: on to the first one beyond it.
+    assert advance_waypoint(PATH, 2, np.array([0.9, 0.3]), tol=0.6, lookahead=0) == 3
+
+
+def test_a_body_pushed_past_its_waypoint_moves_on():
+    # The body missed waypoint 2 (1.04 m away) and stands within 0.6 m of waypoints 3, 4 and 5.
+    k = advance_waypoint(PATH, 2, np.array([2.0, 0.3]), tol=0.6, lookahead=WAYPOINT_LOOKAHEAD)
+    assert k == 6  # past the farthest one within reach, heading on instead of back
+
+
+def test_lookahead_is_bounded_and_stops_at_the_goal():
+    far = np.array([4.0, 0.0])  # near waypoint 8, beyond a lookahead of 4 from waypoint 2
+    assert advance_waypoint(PATH, 2, far, tol=0.3, lookahead=4) == 2
+    assert advance_waypoint(PATH, 7, np.array([4.5, 0.0]), tol=0.6, lookahead=4) == 9  # last index
+
+
+def _door(gap: float = 0.9, thickness: float = 0.12) -> np.ndarray:
+    """A wall along y = 0 from x = -3 to 3 with a door of ``gap`` centred on x = 0, as closed outlines."""
+    segs = []
+    h = thickness / 2
+    for x0, x1 in ((-3.0, -gap / 2), (gap / 2, 3.0)):
+        corners = [(x0, -h), (x1, -h), (x1, h), (x0, h)]
+        segs += [[corners[i], corners[(i + 1) % 4]] for i in range(4)]
+    return np.asarray(segs, dtype=float)
+
+
+def _walk(wall_radius, x0: float, seconds: float = 5.0) -> np.ndarray:
+    segs = _door()
+    groups = np.repeat(np.arange(2), 4)
+    pos, vel = np.array([[x0, -1.0]]), np.zeros((1, 2))
+    for _ in range(int(seconds / 0.1)):
+        vel = social_force_velocities(pos, vel, np.array([[0.0, 1.2]]), 0.4, 2.0, 0.1, SocialForceParams(), segs,
+                                      segment_groups=groups, wall_radius=wall_radius)
+        pos = pos + 0.1 * vel
+    return pos[0]
+
+
+def test_a_padded_body_stops_at_a_door_that_its_wall_radius_passes():
+    # 0.4 m on both people and walls, entering 0.15 m off the door's axis: the jambs hold it back.
+    assert _walk(None, 0.15)[1] < 0.0
+    # The same 0.4 m towards people but 0.3 m towards walls walks through.
+    assert _walk(0.3, 0.15)[1] > 2.0
+
+
+def test_wall_radius_changes_only_the_wall_term():
+    pos = np.array([[0.0, -0.5], [1.0, -0.6]])
+    vel = np.zeros((2, 2))
+    pref = np.array([[0.0, 1.0], [0.0, 1.0]])
+    segs, groups = _door(), np.repeat(np.arange(2), 4)
+    a = social_forces(pos, vel, pref, 0.4, SocialForceParams(), segs, segment_groups=groups)
+    b = social_forces(pos, vel, pref, 0.4, SocialForceParams(), segs, segment_groups=groups, wall_radius=0.3)
+    np.testing.assert_allclose(a.people, b.people)
+    np.testing.assert_allclose(a.goal, b.goal)
+    assert np.linalg.norm(b.walls[1]) < np.linalg.norm(a.walls[1])  # a smaller body feels the wall less
+    c = social_forces(pos, vel, pref, 0.4, SocialForceParams(), segs, segment_groups=groups, wall_radius=0.4)
+    np.testing.assert_allclose(a.walls, c.walls)
+
+
+def test_wall_radius_shape_is_checked():
+    with pytest.raises(ValueError, match="wall_radius"):
+        social_forces(np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)), 0.3, SocialForceParams(),
+                      wall_radius=np.ones(3))
