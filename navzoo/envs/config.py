@@ -63,6 +63,11 @@ class NavConfig:
         human_body_contacts: also count PyBullet contacts between a robot and a humanoid's limbs
             as collisions (a walking humanoid's hands and feet reach up to ~0.1 m beyond a 0.3 m
             disc). Off = the disc model alone, as CrowdNav (the CrowdNav presets turn it off).
+        human_contact_penalty: kinematic pedestrians (crowd or learning ones) get the collision
+            reward (-20) on the step a contact begins: with a robot (the robot's swept collision test
+            or PyBullet contact) or with another pedestrian (discs overlapping). They are not taken
+            out of the episode; ``info["contact"]`` names what they touched (``"robot"``,
+            ``"human"`` or ``""``). Off = pedestrians' only cost for contact is the proximity term.
         human_speed: (min, max) preferred walking speed, sampled per person (m/s).
         human_at_goal: what a pedestrian does on reaching its goal: ``"new_goal"`` (walk on to a
             newly sampled goal, a continuous crowd) or ``"stop"`` (stay there, as in CrowdNav's
@@ -120,6 +125,7 @@ class NavConfig:
     human_yielding: bool = True
     human_radius: float = 0.3
     human_body_contacts: bool = True
+    human_contact_penalty: bool = True
     human_speed: tuple[float, float] = (1.0, 1.4)
     human_at_goal: Literal["new_goal", "stop"] = "new_goal"
     human_max_speed: float = 2.0
@@ -183,6 +189,8 @@ class NavConfig:
             raise bad("human_at_goal", "'new_goal' or 'stop'")
         if not isinstance(self.human_body_contacts, bool):
             raise bad("human_body_contacts", "a bool")
+        if not isinstance(self.human_contact_penalty, bool):
+            raise bad("human_contact_penalty", "a bool")
         for name in ("human_radius", "human_max_speed", "dt", "min_goal_distance", "sensor_range", "map_size",
                      "path_spacing", "waypoint_tolerance", "grid_resolution"):
             if not _is_pos(getattr(self, name)):

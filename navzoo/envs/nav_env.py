@@ -362,6 +362,8 @@ class NavEnv(ParallelEnv):
             self.diffusion.seed = int(self.rng_crowd.integers(2**31))
             self.diffusion.reset(self)
         self.human_fallen = np.zeros(H, dtype=bool)
+        self._human_contact = np.zeros(H, dtype="<U5")  # what each pedestrian touched at the last step
+        self._humans_hit: set[int] = set()
         self.human_map_contact = np.zeros(H, dtype=bool)
         self.human_agent_contact = np.zeros(H, dtype=bool)
         self.human_robot_contact = np.zeros(H, dtype=bool)
@@ -533,6 +535,9 @@ class NavEnv(ParallelEnv):
         collided = np.zeros(self.n_total, dtype=bool)
         collided[list(coll_kind)] = True
         d_agents, d_walls = self._clearance_parts()
+        human_contact_new = self._human_contacts(coll_kind, d_agents, hum)
+        if human_contact_new is not None:
+            collided[hum] = human_contact_new
         if cfg.wall_proximity is None:  # the paper: one clearance to everything
             d_obs, d_walls_reward = np.minimum(d_agents, d_walls), None
         else:
@@ -620,6 +625,7 @@ class NavEnv(ParallelEnv):
                 info["collision"] = coll_kind.get(int(i), "")
             else:
                 info["goal_reached"] = bool(reached[i])
+                info["contact"] = str(self._human_contact[i - R])
                 info["map_blocked"] = bool(self._human_blocked[i - R]) if self.n_humans else False
                 if self.replay is not None:
                     info["active"] = bool(self.human_active[i - R])
@@ -679,6 +685,7 @@ class NavEnv(ParallelEnv):
         """Collisions of each live robot during the step: swept discs and PyBullet contacts."""
         R = self.n_robots
         out: dict[int, str] = {}
+        self._humans_hit = set()  # pedestrians (0-based) that a robot collided with in this step
         idx = np.flatnonzero(robot_alive)
         if idx.size == 0:
             return out
@@ -696,6 +703,7 @@ class NavEnv(ParallelEnv):
             for k, i in enumerate(idx):
                 if hit[k].any():
                     out[int(i)] = "human"
+            self._humans_hit.update(int(j) for j in h[hit.any(axis=0)] - R)
         # Other robots (both moving).
         if idx.size > 1:
             p0 = prev_pos[idx][:, None, :] - prev_pos[idx][None, :, :]
@@ -724,8 +732,39 @@ class NavEnv(ParallelEnv):
                     continue
                 if kind is not None:
                     out[int(i)] = kind
+                    if kind == "human" and self._human_index.get(body) is not None:
+                        self._humans_hit.add(int(self._human_index[body]))
                     break
         return out
+
+    def _human_contacts(self, coll_kind: dict[int, str], d_agents: np.ndarray, hum: np.ndarray) -> np.ndarray | None:
+        """Kinematic pedestrians' contacts in this step (``NavConfig.human_contact_penalty``).
+
+        Updates ``self._human_contact`` ("robot", "human" or "") and returns the (H,) mask of contacts
+        that began in this step (they earn the collision reward), or None where the penalty does not
+        apply (off, AMP bodies with their own reward, replayed people, no pedestrians).
+        """
+        if hum.size == 0:
+            return None
+        R = self.n_robots
+        before = self._human_contact != ""
+        now = np.full(hum.size, "", dtype="<U5")
+        vis = self.alive[hum] & self.present[hum]
+        now[vis & (d_agents[hum] < -COLLISION_TOLERANCE)] = "human"
+        if any(kind == "human" for kind in coll_kind.values()):
+            for j in self._humans_hit:
+                now[j] = "robot"
+        # A disc overlap with a robot that the robot's own test did not report (a robot that left).
+        if R:
+            rob = np.flatnonzero(self.alive[:R] & self.present[:R])
+            if rob.size:
+                gap = (np.linalg.norm(self.pos[hum][:, None, :] - self.pos[rob][None, :, :], axis=2)
+                       - self.radius[hum][:, None] - self.radius[rob][None, :])
+                now[vis & (gap < -COLLISION_TOLERANCE).any(axis=1)] = "robot"
+        self._human_contact = now
+        if not self.config.human_contact_penalty or self.amp is not None or self.replay is not None:
+            return None
+        return (now != "") & ~before
 
     def _swept_hits_walls(self, p0: np.ndarray, p1: np.ndarray, radius: np.ndarray) -> np.ndarray:
         """Whether discs moving straight from p0 to p1 touch any wall edge (exact test).

@@ -7,8 +7,9 @@ evaluations with the same seed see the same starts and goals.
 
 Per episode and then averaged: robot success / collision / timeout rate, time to goal of the
 successful robots, pedestrian goals reached per pedestrian and their mean speed, the smallest
-robot-pedestrian gap (edge to edge) and the share of robot-steps with a pedestrian closer than 0.5 m
-(edge to edge: inside personal space).
+robot-pedestrian gap (edge to edge), the share of robot-steps with a pedestrian closer than 0.5 m
+(edge to edge: inside personal space), and the contacts that pedestrians began with a robot and with
+another pedestrian per episode (``info["contact"]`` of the env, counted where a contact starts).
 """
 
 from __future__ import annotations
@@ -40,9 +41,15 @@ def evaluate(cfg: JointConfig, episodes: int = 20, seed: int = 0) -> dict[str, A
     for ep in range(episodes):
         env.reset(seed=seed + ep)
         min_gap, close, robot_steps, speed = np.inf, 0, 0, []
+        contacts = {"robot": 0, "human": 0}
+        prev_contact = np.zeros(nav.n_humans, dtype=bool)
         finished: dict[int, int] = {}
         while nav.agents:
             env.step({})
+            now = nav._human_contact
+            for kind in contacts:
+                contacts[kind] += int(((now == kind) & ~prev_contact).sum())
+            prev_contact = now != ""
             for i in np.flatnonzero(~nav.alive[:R]):
                 finished.setdefault(int(i), int(nav.steps))
             alive_r = np.flatnonzero(nav.alive[:R])
@@ -69,12 +76,15 @@ def evaluate(cfg: JointConfig, episodes: int = 20, seed: int = 0) -> dict[str, A
             "human_speed_mps": float(np.mean(speed)) if speed else None,
             "min_robot_human_gap_m": None if not np.isfinite(min_gap) else round(min_gap, 4),
             "personal_space_share": round(close / robot_steps, 4) if robot_steps else None,
+            "ped_robot_contacts": contacts["robot"] if nav.n_humans else None,
+            "ped_ped_contacts": contacts["human"] if nav.n_humans else None,
             "robot_goal_time_s": round(float(np.mean(goal_times)), 3) if goal_times else None,
         })
     env.close()
     means: dict[str, Any] = {}
     for key in ("robot_success", "robot_collision", "robot_timeout", "robot_goal_time_s", "episode_s", "human_goals_per_human",
-                "human_speed_mps", "min_robot_human_gap_m", "personal_space_share"):
+                "human_speed_mps", "min_robot_human_gap_m", "personal_space_share", "ped_robot_contacts",
+                "ped_ped_contacts"):
         vals = [r[key] for r in rows if r[key] is not None]
         means[key] = round(float(np.mean(vals)), 4) if vals else None
     return {"config": cfg.to_dict(), "episodes": episodes, "seed": seed, "mean": means, "per_episode": rows}
