@@ -261,7 +261,7 @@ def resolve_module_dir(path: str | Path, module_id: str) -> Path:
     Accepts the ``--out`` folder of :mod:`navzoo.rl.train` (its latest checkpoint), a checkpoint
     folder (``algo.save``) or the module folder itself.
     """
-    p = Path(path)
+    p = Path(path).expanduser().resolve()  # RLlib loads modules from absolute paths (URIs) only
     if not p.exists():
         raise FileNotFoundError(f"policy path {p} does not exist")
     latest = p / "latest_checkpoint.txt"

@@ -70,6 +70,19 @@ def test_resolve_module_dir_errors(tmp_path):
         resolve_module_dir(tmp_path, "human")
 
 
+def test_resolve_module_dir_gives_an_absolute_path_for_a_relative_run_folder(tmp_path, monkeypatch):
+    # RLlib restores modules from absolute paths only ("URI has empty scheme" otherwise).
+    ckpt = tmp_path / "run" / "checkpoints" / "iter_000002"
+    mod = ckpt / "learner_group" / "learner" / "rl_module" / "human"
+    mod.mkdir(parents=True)
+    for name in ("class_and_ctor_args.pkl", "module_state.pkl"):
+        (mod / name).write_bytes(b"")
+    (tmp_path / "run" / "latest_checkpoint.txt").write_text(str(ckpt.relative_to(tmp_path / "run")))
+    monkeypatch.chdir(tmp_path)
+    got = resolve_module_dir("run", "human")
+    assert got.is_absolute() and got == mod.resolve()
+
+
 def test_cli_flags_override_the_config_file(tmp_path):
     from navzoo.rl.train import add_arguments, joint_config_from_args, run_cli
 
