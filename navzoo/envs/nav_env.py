@@ -86,7 +86,8 @@ class NavEnv(ParallelEnv):
     ## Rewards
     Robots: the paper's r_nav + r_omega (see :mod:`navzoo.envs.rewards`), each term in
     ``info[agent]["reward/<term>"]``. Pedestrians: the same r_nav with their own goal (no omega
-    term); a pedestrian that reaches its goal gets +20 and a new goal.
+    term); a pedestrian that reaches its goal gets +20 and a new goal, and a kinematic one gets the
+    collision term (-20) when a contact with a robot or a person begins (``human_contact_penalty``).
 
     ## Starting state
     Sampled from the scene's spawn/goal regions or its protocol (circle/square crossing) by a seeded
