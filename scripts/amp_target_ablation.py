@@ -3,9 +3,10 @@
 Runs :func:`navzoo.benchmark.pedestrians.follow_scene` (8 scenes, 3-15 people, social-force targets)
 once per configuration and scene, in parallel processes, and appends one JSON row per run to
 ``--out`` (rows already there are skipped, so an interrupted run resumes). A configuration is
-``NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD`` and sets, in every worker,
+``NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE]`` and sets, in every worker,
 ``navzoo.envs.amp_humans.PLAN_MARGIN`` (people and A* inflation), ``WALL_PLAN_MARGIN`` (walls in the
-social-force rollouts) and ``WAYPOINT_LOOKAHEAD`` (0 = waypoints in strict order).
+social-force rollouts), ``WAYPOINT_LOOKAHEAD`` (0 = waypoints in strict order) and
+``TARGET_TURN_RATE`` (rad/s, the rollouts' heading-rate limit; 0 or left out = off).
 
     python scripts/amp_target_ablation.py --configs before:0.1:0.1:0,now:0.1:0:4 --seconds 200 \
         --workers 16 --out docs/results/amp_target_ablation.jsonl
@@ -23,12 +24,13 @@ from pathlib import Path
 
 def parse_config(text: str) -> dict:
     parts = text.split(":")
-    if len(parts) != 4:
-        raise ValueError(f"a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD, got {text!r}")
-    name, plan, wall, ahead = parts
-    cfg = {"name": name, "plan_margin": float(plan), "wall_margin": float(wall), "lookahead": int(ahead)}
-    if cfg["plan_margin"] < 0 or cfg["wall_margin"] < 0 or cfg["lookahead"] < 0:
-        raise ValueError(f"margins and lookahead must be >= 0, got {text!r}")
+    if len(parts) not in (4, 5):
+        raise ValueError(f"a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE], got {text!r}")
+    name, plan, wall, ahead = parts[:4]
+    cfg = {"name": name, "plan_margin": float(plan), "wall_margin": float(wall), "lookahead": int(ahead),
+           "turn_rate": float(parts[4]) if len(parts) == 5 else 0.0}
+    if min(cfg["plan_margin"], cfg["wall_margin"], cfg["lookahead"], cfg["turn_rate"]) < 0:
+        raise ValueError(f"margins, lookahead and turn rate must be >= 0, got {text!r}")
     return cfg
 
 
@@ -43,11 +45,12 @@ def _run(job: tuple[dict, str, int, float, int]) -> dict:
     ah.PLAN_MARGIN = ne.AMP_PLAN_MARGIN = cfg["plan_margin"]
     ah.WALL_PLAN_MARGIN = cfg["wall_margin"]
     ah.WAYPOINT_LOOKAHEAD = ne.WAYPOINT_LOOKAHEAD = cfg["lookahead"]
+    ah.TARGET_TURN_RATE = cfg["turn_rate"]
     from navzoo.benchmark.pedestrians import follow_scene
 
     row = follow_scene(scene, n, seconds, seed)
     row.pop("poses")
-    return {"config": cfg["name"], **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead")},
+    return {"config": cfg["name"], **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate")},
             "seed": seed, **row}
 
 
@@ -56,12 +59,12 @@ def summary(path: str) -> str:
     keys = ("success", "off_path", "fall", "timeout")
     lines = ["| configuration | trips | success | off path | fall | timeout | map contact | agent contact | path error (m) |",
              "|---|---|---|---|---|---|---|---|---|"]
-    for name in dict.fromkeys(r["config"] for r in rows):
-        rs = [r for r in rows if r["config"] == name]
+    for name, seed in dict.fromkeys((r["config"], r["seed"]) for r in rows):
+        rs = [r for r in rows if r["config"] == name and r["seed"] == seed]
         n = sum(r[k] for r in rs for k in keys)
         err = sum(r["err_sum"] for r in rs) / max(1, sum(r["err_n"] for r in rs))
         share = {k: sum(r[k] for r in rs) / max(1, n) for k in (*keys, "map_trips", "agent_trips")}
-        lines.append(f"| {name} ({len(rs)} scenes) | {n} | {share['success']:.3f} | {share['off_path']:.3f} | "
+        lines.append(f"| {name}, seed {seed} ({len(rs)} scenes) | {n} | {share['success']:.3f} | {share['off_path']:.3f} | "
                      f"{share['fall']:.3f} | {share['timeout']:.3f} | {share['map_trips']:.3f} | "
                      f"{share['agent_trips']:.3f} | {err:.3f} |")
     return "\n".join(lines)

@@ -76,3 +76,25 @@ def test_wall_radius_shape_is_checked():
     with pytest.raises(ValueError, match="wall_radius"):
         social_forces(np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)), 0.3, SocialForceParams(),
                       wall_radius=np.ones(3))
+
+
+def test_limit_turn_caps_the_heading_rate_and_slows_sharp_turns():
+    from navzoo.envs.amp_humans import limit_turn
+
+    v_prev = np.array([[1.2, 0.0], [1.2, 0.0], [0.0, 0.0], [1.0, 0.0]])
+    v_new = np.array([[-1.2, 1e-6], [1.1, 0.1], [0.0, 1.0], [0.0, 1.0]])
+    out = limit_turn(v_prev, v_new, max_angle=0.2)
+    # A U-turn: the heading turns by 0.2 rad and the disc slows to the minimum speed.
+    assert np.arctan2(out[0, 1], out[0, 0]) == pytest.approx(0.2, abs=1e-6)
+    assert np.linalg.norm(out[0]) == pytest.approx(0.2)
+    np.testing.assert_allclose(out[1], v_new[1])  # a turn within the limit is left alone
+    np.testing.assert_allclose(out[2], v_new[2])  # starting from standstill: any heading
+    # A 90-degree turn: 0.2 rad of it, at half the speed.
+    assert np.arctan2(out[3, 1], out[3, 0]) == pytest.approx(0.2, abs=1e-6)
+    assert np.linalg.norm(out[3]) == pytest.approx(0.5)
+    # Repeated, a U-turn takes pi / 0.2 steps.
+    v, steps = v_prev[:1].copy(), 0
+    while np.dot(v[0], [-1.0, 0.0]) < 0.99 * np.linalg.norm(v[0]):
+        v = limit_turn(v, np.array([[-1.2, 0.0]]), max_angle=0.2)
+        steps += 1
+    assert steps == int(np.ceil(np.pi / 0.2))

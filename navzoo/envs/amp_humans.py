@@ -74,6 +74,38 @@ DIFFUSION_LOOKAHEAD_S = 0.8
 WAYPOINT_LOOKAHEAD = 4
 
 
+# Social force turns a disc toward a new direction as fast as its relaxation allows: at a trip's
+# start it can head back the other way within a second, faster than a walking body turns, and the
+# body falls behind its target. The target rollouts of rule-based crowds therefore turn a moving
+# disc's heading by at most TARGET_TURN_RATE (rad/s) and slow it down in sharp turns (limit_turn);
+# 0 = off. 2 rad/s measured best (scripts/amp_target_ablation.py, docs/pedestrians.md: following
+# success 0.33 -> 0.40 over two seeds; 1, 3 and 4 rad/s no gain). Diffusion-planned targets are left
+# as they were measured (not ablated yet).
+TARGET_TURN_RATE = 2.0
+
+
+def limit_turn(v_prev: np.ndarray, v_new: np.ndarray, max_angle: float, moving: float = 0.1,
+               min_speed: float = 0.2) -> np.ndarray:
+    """Velocities ``v_new`` (N, 2) whose heading turned at most ``max_angle`` (rad) from ``v_prev``.
+
+    Only discs moving faster than ``moving`` (m/s) before and after are limited; a limited one keeps
+    ``v_new``'s speed times (1 + cos a) / 2 for the wanted turn a (a U-turn slows it to ``min_speed``).
+    """
+    sp_prev = np.linalg.norm(v_prev, axis=1)
+    sp_new = np.linalg.norm(v_new, axis=1)
+    h_prev = np.arctan2(v_prev[:, 1], v_prev[:, 0])
+    want = np.arctan2(v_new[:, 1], v_new[:, 0]) - h_prev
+    want = (want + np.pi) % (2.0 * np.pi) - np.pi
+    limit = (sp_prev > moving) & (sp_new > moving) & (np.abs(want) > max_angle)
+    if not limit.any():
+        return v_new
+    out = v_new.copy()
+    h = h_prev[limit] + np.sign(want[limit]) * max_angle
+    speed = np.maximum(min_speed, sp_new[limit] * 0.5 * (1.0 + np.cos(want[limit])))
+    out[limit] = speed[:, None] * np.stack([np.cos(h), np.sin(h)], axis=1)
+    return out
+
+
 def advance_waypoint(path: np.ndarray, k: int, pos: np.ndarray, tol: float, lookahead: int = 0) -> int:
     """Index of the waypoint to head for next: past the farthest of ``path[k .. k + lookahead]``
     within ``tol`` of ``pos``, then past every following one within ``tol`` (``lookahead=0``: the
@@ -196,6 +228,7 @@ class AmpHumans:
             cap = np.minimum(vmax, v_pref * 1.3)[:, None]
         out = np.empty((self.n, steps + 1, 2))
         out[:, 0] = pos
+        prev_vel = vel
         for k in range(steps):
             if diffusion is not None:
                 look = DIFFUSION_LOOKAHEAD_S
@@ -221,6 +254,9 @@ class AmpHumans:
                                       np.concatenate([pref, r_vel]), np.concatenate([rad, r_rad]),
                                       np.concatenate([vmax, np.full(robots.size, env.config.robot.max_speed)]),
                                       PLAN_DT, self.orca, env.segments, n_active=self.n)
+            if TARGET_TURN_RATE > 0.0 and diffusion is None:
+                vel = limit_turn(prev_vel, vel, TARGET_TURN_RATE * PLAN_DT)
+            prev_vel = vel
             pos = pos + PLAN_DT * vel
             out[:, k + 1] = pos
         self.paths = resample(out, PLAN_DT, 1.0 / CONTROL_HZ, self.path_len)
