@@ -73,6 +73,9 @@ EPISODES_FILE = "episodes.jsonl"
 ERRORS_FILE = "errors.jsonl"
 RUN_FILE = "run.json"
 CROWD_MODELS = ("sfm", "orca", "orca_rvo2")
+# A crowd of pedestrians trained with RLlib (navzoo.rl.train, humans: learn): "rllib:PATH" with PATH a
+# training --out folder, a checkpoint or the "human" module folder. They act on flattened observations.
+LEARNED_CROWD_PREFIX = "rllib:"
 # NavConfig fields the runner sets per cell or per episode: a spec's ``env`` must not set them.
 _RUNNER_FIELDS = ("scene", "n_humans", "crowd_model", "time_limit", "max_episode_steps_override", "n_robots")
 # Spec fields that change the episodes' results: a resumed run must agree on them.
@@ -93,7 +96,10 @@ class BenchmarkSpec:
         scenes: scene names (``navzoo scenes``, or ``procedural_rooms_<seed>``...).
         methods: robot policy names (:func:`navzoo.agents.baselines.make_policy`). A ``-holonomic`` or
             ``-diffdrive`` suffix also sets the robot's kinematics for that method.
-        crowds: crowd models of the pedestrians (``sfm``, ``orca``, ``orca_rvo2``).
+        crowds: crowd models of the pedestrians (``sfm``, ``orca``, ``orca_rvo2``), or ``rllib:PATH``:
+            pedestrians trained with :mod:`navzoo.rl.train` (the run's ``--out`` folder, a checkpoint or the
+            ``human`` module folder); they act on flattened observations, so the env's observation settings
+            must be those they were trained with.
         densities: people per m² of the scene's crowd area (``round(d * scene.crowd_area())`` people: the free
             space, or the circle/square of the CrowdNav protocols).
         humans: people per scene (counts), instead of ``densities``; neither = each scene's default.
@@ -138,9 +144,10 @@ class BenchmarkSpec:
             if not value or not all(isinstance(v, str) and v.strip() for v in value):
                 raise bad(name, "a non-empty list of names")
             object.__setattr__(self, name, tuple(dict.fromkeys(v.strip() for v in value)))
-        unknown = [c for c in self.crowds if c not in CROWD_MODELS]
+        unknown = [c for c in self.crowds if c not in CROWD_MODELS and not c.startswith(LEARNED_CROWD_PREFIX)]
         if unknown:
-            raise ValueError(f"benchmark spec: unknown crowd model(s) {unknown}; valid: {list(CROWD_MODELS)}")
+            raise ValueError(f"benchmark spec: unknown crowd model(s) {unknown}; valid: {list(CROWD_MODELS)} or "
+                             f"'{LEARNED_CROWD_PREFIX}PATH' (pedestrians trained with navzoo.rl.train)")
         if self.densities is not None and self.humans is not None:
             raise ValueError("benchmark spec: give densities (people per m²) or humans (counts), not both")
         if self.densities is not None:
@@ -412,7 +419,11 @@ def _env_kwargs(spec: BenchmarkSpec, cell: Cell, method: str) -> dict[str, Any]:
         robot["kinematics"] = kin
     if robot:
         kw["robot"] = robot
-    kw.update(scene=cell.scene, n_humans=cell.n_humans, crowd_model=cell.crowd)
+    if cell.crowd.startswith(LEARNED_CROWD_PREFIX):
+        # The learned pedestrians act themselves; the crowd model only names the env's default.
+        kw.update(scene=cell.scene, n_humans=cell.n_humans, crowd_model="sfm", human_policy=cell.crowd)
+    else:
+        kw.update(scene=cell.scene, n_humans=cell.n_humans, crowd_model=cell.crowd)
     if spec.time_limit is not None:
         kw["time_limit"] = float(spec.time_limit)
     if spec.max_steps is not None:
@@ -450,6 +461,14 @@ def validate_spec(spec: BenchmarkSpec) -> None:
         get_scene(scene)  # ValueError naming the valid scenes
     for method in spec.methods:
         make_policy(method)  # ValueError naming the valid policies
+    for crowd in spec.crowds:
+        if crowd.startswith(LEARNED_CROWD_PREFIX):
+            from navzoo.rl.config import resolve_module_dir
+
+            try:
+                resolve_module_dir(crowd[len(LEARNED_CROWD_PREFIX):], "human")
+            except FileNotFoundError as exc:
+                raise ValueError(f"benchmark spec: crowd {crowd!r}: {exc}") from exc
     env = _plain(spec.env)
     robot = env.pop("robot", None)
     if robot is not None and not isinstance(robot, Mapping):
@@ -491,7 +510,17 @@ def _get_env(kwargs: Mapping[str, Any], render: bool) -> Any:
         _, old = _ENV_CACHE.popitem(last=False)
         with contextlib.suppress(Exception):
             old.close()
-    env = make(None, render_mode="rgb_array" if render else None, **dict(kwargs))
+    kw = dict(kwargs)
+    learned = kw.pop("human_policy", None)
+    if learned is None:
+        env = make(None, render_mode="rgb_array" if render else None, **kw)
+    else:
+        from navzoo.envs.wrappers import FrozenAgents
+        from navzoo.rl.joint import FlatObsPolicy, RLModulePolicy
+
+        raw = make(None, render_mode="rgb_array" if render else None, raw=True, **kw)
+        policy = FlatObsPolicy(RLModulePolicy(learned[len(LEARNED_CROWD_PREFIX):], "human"))
+        env = FrozenAgents(raw, lambda a: a.startswith("human_"), policy)
     _ENV_CACHE[key] = env
     return env
 
@@ -1246,7 +1275,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"a named protocol that sets scenes, crowd, people, robot and limits: {', '.join(protocol_names())}")
     parser.add_argument("--scenes", default=None, help="comma-separated scene names, or 'all' (see `navzoo scenes`)")
     parser.add_argument("--methods", default=None, help="comma-separated robot policies (orca, dwa, sfm, pure-pursuit, ...)")
-    parser.add_argument("--crowd", default=None, help="comma-separated crowd models: sfm, orca, orca_rvo2 (default sfm)")
+    parser.add_argument("--crowd", default=None, help="comma-separated crowd models: sfm, orca, orca_rvo2, or "
+                        "rllib:PATH (pedestrians trained with navzoo train joint) (default sfm)")
     level = parser.add_mutually_exclusive_group()
     level.add_argument("--density", default=None, help="people per m² of free space (of the circle/square for the CrowdNav protocols), e.g. 0.05,0.15,0.3")
     level.add_argument("--humans", default=None, help="people per scene (counts), e.g. 5,10")

@@ -23,7 +23,7 @@ from navzoo.rl.config import (
     JointConfig,
 )
 
-__all__ = ["RLModulePolicy", "frozen_human_policy", "frozen_robot_policy", "make_parallel_env"]
+__all__ = ["FlatObsPolicy", "RLModulePolicy", "frozen_human_policy", "frozen_robot_policy", "make_parallel_env"]
 
 
 def _is_robot(agent: str) -> bool:
@@ -79,6 +79,29 @@ def frozen_human_policy(cfg: JointConfig):
 
         return AmpPedestrianPolicy(spec[len(AMP_PREFIX) + 1:] if spec and ":" in spec else None)
     return RLModulePolicy(spec[len(RLLIB_PREFIX):], HUMAN_POLICY_ID)
+
+
+class FlatObsPolicy:
+    """A policy trained on flat observations (``flat_obs=True``), run in an env with Dict observations.
+
+    Flattens each agent's Dict observation with the env's own space (``gymnasium.spaces.flatten``, the
+    layout ``flat_obs=True`` gives) before handing it to ``policy``; flat ones pass through. Lets
+    pedestrians trained with RLlib walk in the benchmark, whose robots observe Dicts.
+    """
+
+    def __init__(self, policy) -> None:
+        self.policy = policy
+
+    def reset(self, env) -> None:
+        return self.policy.reset(env)
+
+    def act(self, observations: dict[str, Any], env) -> dict[str, np.ndarray]:
+        from gymnasium import spaces
+
+        space = env.unwrapped._dict_space
+        flat = {a: spaces.flatten(space, o).astype(np.float32) if isinstance(o, dict) else o
+                for a, o in observations.items()}
+        return self.policy.act(flat, env)
 
 
 class RLModulePolicy:

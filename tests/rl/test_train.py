@@ -109,6 +109,28 @@ def test_tiny_run_updates_both_policies_then_resumes(tmp_path, local_ray):
                                human_policy=f"rllib:{out}", n_humans=2, env={"time_limit": 5}), episodes=2)
     assert res["mean"]["episode_s"] <= 5.0 and res["mean"]["human_speed_mps"] > 0
 
+    # The trained pedestrians as a crowd of `navzoo benchmark` (Dict observations for the robot's method,
+    # flattened ones for the pedestrians), next to a rule-based crowd on the same seeded episode.
+    import json
+
+    from navzoo.benchmark.runner import BenchmarkSpec, run_benchmark
+
+    spec = BenchmarkSpec(scenes=("circle_crossing",), methods=("dwa",), crowds=("sfm", f"rllib:{out}"),
+                         humans=(2,), episodes=1, time_limit=4.0, save_trajectories=1)
+    summary = run_benchmark(spec, tmp_path / "bench", workers=0, progress=False)
+    assert summary["status"] == "complete" and not summary["errors"]
+    recs = [json.loads(line) for line in (tmp_path / "bench" / "episodes.jsonl").read_text().splitlines()]
+    assert sorted(r["crowd"] for r in recs) == sorted(["sfm", f"rllib:{out}"])
+    learned = next(r for r in recs if r["crowd"].startswith("rllib:"))
+    from navzoo.benchmark.runner import artifact_path
+
+    traj = np.load(tmp_path / "bench" / "trajectories" / artifact_path(learned, ".npz"))
+    assert np.abs(np.diff(traj["human_pos"], axis=0)).max() > 0  # the learned pedestrians walk
+    with pytest.raises(ValueError, match="crowd 'rllib:"):
+        from navzoo.benchmark.runner import validate_spec
+
+        validate_spec(BenchmarkSpec(scenes=("circle_crossing",), methods=("dwa",), crowds=(f"rllib:{tmp_path}/none",)))
+
 
 def test_sigint_saves_and_exits(tmp_path):
     out = tmp_path / "run"
