@@ -88,6 +88,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     r.add_argument("--learner-threads", type=int, default=1,
                    help="torch threads of the learner in the driver (default 1: small MLPs on a shared CPU learn "
                         "several times faster than with one thread per core; env runners get 1 from Ray)")
+    r.add_argument("--num-learners", type=int, default=0,
+                   help="learner actors for data-parallel PPO updates (default 0: one learner in the driver); "
+                        "each learns on --batch-size env steps, so an iteration samples num_learners x batch-size")
+    r.add_argument("--gpus-per-learner", type=float, default=0.0,
+                   help="GPUs of each learner (default 0: CPU); with --num-learners 0 the driver's learner")
     r.add_argument("--num-cpus", type=int, default=None,
                    help="local instance only: CPUs Ray may schedule (default max(cores, env runners + 1))")
     t = parser.add_argument_group("PPO")
@@ -119,7 +124,8 @@ def joint_config_from_args(args: argparse.Namespace) -> JointConfig:
     return cfg.validate()
 
 
-def init_ray(address: str | None = None, num_cpus: int | None = None, env_runners: int = 0) -> None:
+def init_ray(address: str | None = None, num_cpus: int | None = None, env_runners: int = 0,
+             learners: int = 0) -> None:
     """Connect to ``address`` or start a local Ray instance on 127.0.0.1 (no usage reporting)."""
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
     import ray
@@ -129,7 +135,7 @@ def init_ray(address: str | None = None, num_cpus: int | None = None, env_runner
     if address:
         ray.init(address=address, log_to_driver=True)
         return
-    cpus = num_cpus if num_cpus is not None else max(os.cpu_count() or 1, env_runners + 1)
+    cpus = num_cpus if num_cpus is not None else max(os.cpu_count() or 1, env_runners + learners + 1)
     with _loopback_only():
         ray.init(num_cpus=cpus, include_dashboard=False, _node_ip_address="127.0.0.1", log_to_driver=True)
 
@@ -188,7 +194,8 @@ def build_config(cfg: JointConfig, args: argparse.Namespace):
             create_local_env_runner=args.env_runners == 0,
             sample_timeout_s=600.0,
         )
-        .learners(num_learners=0)
+        .learners(num_learners=getattr(args, "num_learners", 0),
+                  num_gpus_per_learner=getattr(args, "gpus_per_learner", 0.0))
         .multi_agent(policies=set(policies), policy_mapping_fn=policy_mapping_fn, policies_to_train=list(policies))
         .rl_module(rl_module_spec=MultiRLModuleSpec(
             rl_module_specs={pid: RLModuleSpec(model_config=dict(model)) for pid in policies}))
@@ -420,6 +427,10 @@ def run_cli(args: argparse.Namespace, error: Callable[[str], None] | None = None
                       ("minibatch_size", 1), ("epochs", 1), ("checkpoint_every", 1), ("keep", 1)):
         if getattr(args, name) < low:
             return fail(f"--{name.replace('_', '-')} must be >= {low}, got {getattr(args, name)}")
+    if args.num_learners < 0:
+        return fail(f"--num-learners must be >= 0, got {args.num_learners}")
+    if not (args.gpus_per_learner >= 0 and math.isfinite(args.gpus_per_learner)):
+        return fail(f"--gpus-per-learner must be a number >= 0, got {args.gpus_per_learner}")
     if args.address and args.num_cpus is not None:
         return fail("--num-cpus applies to a local Ray instance only; a cluster's nodes declare their CPUs at `ray start`")
     try:
@@ -436,7 +447,7 @@ def run_cli(args: argparse.Namespace, error: Callable[[str], None] | None = None
         import ray.rllib  # noqa: F401
     except ImportError:
         return fail("Ray RLlib is not installed: pip install 'navzoo[ray]' (see docs/scaling.md)")
-    init_ray(args.address, args.num_cpus, args.env_runners)
+    init_ray(args.address, args.num_cpus, args.env_runners, args.num_learners)
     try:
         summary = run(cfg, args)
     finally:

@@ -100,6 +100,10 @@ def test_cli_flags_override_the_config_file(tmp_path):
     assert run_cli(parser.parse_args(["--env-runners", "-1"]), errors.append) == 2
     assert "--env-runners must be >= 0" in errors[1]
     assert run_cli(parser.parse_args(["--address", "127.0.0.1:1", "--num-cpus", "2"]), errors.append) == 2
+    assert run_cli(parser.parse_args(["--num-learners", "-1"]), errors.append) == 2
+    assert "--num-learners must be >= 0" in errors[-1]
+    assert run_cli(parser.parse_args(["--gpus-per-learner", "nan"]), errors.append) == 2
+    assert "--gpus-per-learner" in errors[-1]
     with pytest.raises(SystemExit):
         parser.parse_args(["--humans", "sometimes"])
 

@@ -21,7 +21,7 @@ import pytest
 pytest.importorskip("ray.rllib")
 
 from navzoo.rl.config import JointConfig  # noqa: E402
-from navzoo.rl.train import add_arguments, init_ray, joint_config_from_args, run  # noqa: E402
+from navzoo.rl.train import add_arguments, build_config, init_ray, joint_config_from_args, run  # noqa: E402
 
 # Five-second episodes (20 steps at dt 0.25 s) with 2 pedestrians, 200 env steps per iteration, a small net.
 TINY = ["--n-humans", "2", "--set", "time_limit=5", "--batch-size", "200", "--minibatch-size", "100",
@@ -130,6 +130,26 @@ def test_tiny_run_updates_both_policies_then_resumes(tmp_path, local_ray):
         from navzoo.benchmark.runner import validate_spec
 
         validate_spec(BenchmarkSpec(scenes=("circle_crossing",), methods=("dwa",), crowds=(f"rllib:{tmp_path}/none",)))
+
+
+def test_a_learner_actor_updates_both_policies(tmp_path):
+    # --num-learners 1: the PPO update runs in a learner actor (a Ray process), not in the driver.
+    out = tmp_path / "run"
+    init_ray(None, num_cpus=3, env_runners=1, learners=1)
+    try:
+        args = _args(*TINY, "--env-runners", "1", "--num-learners", "1", "--iterations", "1", "--out", str(out))
+        cfg = joint_config_from_args(args)
+        assert build_config(cfg, args).num_learners == 1
+        lines = []
+        summary = run(cfg, args, emit=lines.append)
+    finally:
+        import ray
+
+        ray.shutdown()
+    assert summary["iterations"] == 1
+    for pid in ("robot", "human"):
+        assert lines[1]["learner"][pid]["weights_delta_l2"] > 0
+        assert np.isfinite(lines[1]["learner"][pid]["policy_loss"])
 
 
 def test_sigint_saves_and_exits(tmp_path):
