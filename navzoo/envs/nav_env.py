@@ -755,7 +755,8 @@ class NavEnv(ParallelEnv):
         if any(kind == "human" for kind in coll_kind.values()):
             for j in self._humans_hit:
                 now[j] = "robot"
-        # A disc overlap with a robot that the robot's own test did not report (a robot that left).
+        # Overlapping a live robot's disc counts too (the robot's test reports one kind per robot and
+        # stops at the first: a robot that hit a wall while touching a person).
         if R:
             rob = np.flatnonzero(self.alive[:R] & self.present[:R])
             if rob.size:
