@@ -172,7 +172,7 @@ def pretrain(demo_dir: str | Path, out: str | Path, init_from: str | Path | None
     from gymnasium import spaces
     from stable_baselines3.common.policies import ActorCriticPolicy
 
-    from navzoo.agents.robot_train import FORWARD_ONLY_ACTIONS, export_policy, load_policy
+    from navzoo.agents.robot_train import FORWARD_ONLY_ACTIONS, export_policy, init_weights_from, load_policy
     from navzoo.agents.transformer import observation_dict_space, transformer_policy_kwargs
 
     if threads:
@@ -189,14 +189,29 @@ def pretrain(demo_dir: str | Path, out: str | Path, init_from: str | Path | None
         raise ValueError(f"{demo_dir} holds {n_eps} episode; pretraining needs at least 2 (one is held out)")
     val_eps = set(np.random.default_rng(seed).choice(n_eps, max(1, int(round(val_fraction * n_eps))), replace=False))
     is_val = np.isin(ep_id, list(val_eps))
+    scan_rays = int(overrides.get("scan_rays") or 0)
     if init_from is not None:  # its architecture and action box, its weights
         policy = load_policy(init_from).model
+        ext = policy.features_extractor
+        if scan_rays and not ext.scan_rays:  # the same network plus a scan input (starting at zero)
+            kw = {**ext.config(), "scan_rays": scan_rays}
+            obs_space = spaces.flatten_space(observation_dict_space(ext.k_neighbors, ext.history, ext.map_cells,
+                                                                    scan_rays))
+            arch = policy.net_arch
+            widened = ActorCriticPolicy(obs_space, policy.action_space, lr_schedule=lambda _: lr,
+                                        net_arch=arch if isinstance(arch, dict) else list(arch),
+                                        activation_fn=policy.activation_fn,
+                                        features_extractor_class=type(ext), features_extractor_kwargs=kw,
+                                        share_features_extractor=policy.share_features_extractor)
+            init_weights_from(widened, init_from)
+            policy = widened
         policy.set_training_mode(True)
         act_space = policy.action_space
     else:  # the default architecture (navzoo train robot's defaults)
-        obs_space = spaces.flatten_space(observation_dict_space(6, 8, 32))
+        obs_space = spaces.flatten_space(observation_dict_space(6, 8, 32, scan_rays))
         act_space = FORWARD_ONLY_ACTIONS if forward_only else spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
-        policy = ActorCriticPolicy(obs_space, act_space, lr_schedule=lambda _: lr, **transformer_policy_kwargs())
+        policy = ActorCriticPolicy(obs_space, act_space, lr_schedule=lambda _: lr,
+                                   **transformer_policy_kwargs(scan_rays=scan_rays or None))
     if data["obs"].shape[1] != policy.observation_space.shape[0]:
         raise ValueError(f"demonstrations have observations of size {data['obs'].shape[1]}, the policy takes "
                          f"{policy.observation_space.shape[0]}")
@@ -272,6 +287,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     c.add_argument("--expert", default="orca", help="a classical method of navzoo.agents.baselines")
     c.add_argument("--learner", default=None, help="exported policy whose actions are mixed in (DAgger)")
     c.add_argument("--beta", type=float, default=1.0, help="probability of executing the expert's action")
+    c.add_argument("--scan-rays", type=int, default=0, metavar="R",
+                   help="also record a range scan with R rays (NavConfig.scan_rays; 0 = none)")
     t = sub.add_parser("pretrain", help="fit the policy to the demonstrations and export it")
     t.add_argument("--demos", required=True, help="folder of shards (collect --out)")
     t.add_argument("--out", required=True)
@@ -286,8 +303,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.cmd == "collect":
             scenes = parse_scenes(args.scenes) if args.scenes else TRAIN_SCENES
+            overrides = {**DEFAULT_OVERRIDES, **({"scan_rays": args.scan_rays} if args.scan_rays else {})}
             collect(args.out, scenes, args.episodes, seed=args.seed, expert=args.expert, learner=args.learner,
-                    beta=args.beta)
+                    beta=args.beta, overrides=overrides)
         else:
             summary = pretrain(args.demos, args.out, init_from=args.init_from, epochs=args.epochs,
                                batch_size=args.batch_size, lr=args.lr, device=args.device, threads=args.threads,

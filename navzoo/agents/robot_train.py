@@ -61,6 +61,7 @@ __all__ = [
     "TrainArgs",
     "add_arguments",
     "export_policy",
+    "init_weights_from",
     "latest_checkpoint",
     "load_policy",
     "check_resume",
@@ -198,7 +199,7 @@ def make_mixed_vec_env(env_ids: Sequence[str] = TRAIN_SCENES, n_envs: int = 1, s
             raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
     overrides = {**overrides, "flat_obs": True, "n_robots": int(robots_per_env)}
     defaults = NavConfig.__dataclass_fields__
-    sizes = [overrides.get(k, defaults[k].default) for k in ("k_neighbors", "history", "map_cells")]
+    sizes = [overrides.get(k, defaults[k].default) for k in ("k_neighbors", "history", "map_cells", "scan_rays")]
     obs_space = spaces.flatten_space(observation_dict_space(*sizes))
     act_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
     n_copies = len(env_ids) * n_envs
@@ -290,7 +291,8 @@ def export_policy(model: Any, out_dir: str | Path, meta: Mapping[str, Any] | Non
     config = {
         "format": POLICY_FORMAT, "version": POLICY_VERSION,
         "observation": {"kind": "flat" if ext.is_flat else "dict", "k_neighbors": ext.k_neighbors,
-                        "history": ext.history, "map_cells": ext.map_cells},
+                        "history": ext.history, "map_cells": ext.map_cells,
+                        **({"scan_rays": ext.scan_rays} if ext.scan_rays else {})},
         "action": {"shape": list(act.shape), "low": act.low.tolist(), "high": act.high.tolist()},
         "net_arch": arch, "activation": activation,
         "share_features_extractor": bool(policy.share_features_extractor),
@@ -314,9 +316,9 @@ def convert_policy(src_dir: str | Path, dst_dir: str | Path, dtype: str = "float
     return path
 
 
-def _obs_converter(kind: str, k: int, t: int, c: int) -> Callable[[Any], Any]:
+def _obs_converter(kind: str, k: int, t: int, c: int, r: int = 0) -> Callable[[Any], Any]:
     """Convert a batch of robot observations (stacked Dict or flat) into the form the policy takes."""
-    layout = flat_layout(k, t, c)
+    layout = flat_layout(k, t, c, r)
 
     def convert(batch: Any) -> Any:
         if isinstance(batch, Mapping):
@@ -387,7 +389,8 @@ def load_policy(model_dir: str | Path | None = None, deterministic: bool = True,
     try:
         ob = cfg["observation"]
         k, t, c, kind = int(ob["k_neighbors"]), int(ob["history"]), int(ob["map_cells"]), ob["kind"]
-        dict_space = observation_dict_space(k, t, c)
+        r = int(ob.get("scan_rays", 0))
+        dict_space = observation_dict_space(k, t, c, r)
         obs_space = spaces.flatten_space(dict_space) if kind == "flat" else dict_space
         a = cfg["action"]
         act_space = spaces.Box(np.array(a["low"], np.float32), np.array(a["high"], np.float32), dtype=np.float32)
@@ -410,15 +413,56 @@ def load_policy(model_dir: str | Path | None = None, deterministic: bool = True,
         raise ValueError(f"{weights} does not fit the architecture in {cfg_path}: {err}") from err
     policy = policy.to(device)
     policy.set_training_mode(False)
-    sb3 = SB3Policy(policy, deterministic=deterministic, obs_transform=_obs_converter(kind, k, t, c), name=name)
-    lookahead = ((cfg.get("training") or {}).get("env_overrides") or {}).get("robot_subgoal")
-    if lookahead is None:
-        return sb3
-    from navzoo.envs.subgoal import GuidedPolicy
+    sb3 = SB3Policy(policy, deterministic=deterministic, obs_transform=_obs_converter(kind, k, t, c, r), name=name)
+    env_overrides = (cfg.get("training") or {}).get("env_overrides") or {}
+    lookahead = env_overrides.get("robot_subgoal")
+    out: Any = sb3
+    if lookahead is not None:
+        from navzoo.envs.subgoal import GuidedPolicy
 
-    if not (isinstance(lookahead, (int, float)) and math.isfinite(lookahead) and lookahead > 0):
-        raise ValueError(f"{cfg_path}: training.env_overrides.robot_subgoal must be a number > 0, got {lookahead!r}")
-    return GuidedPolicy(sb3, float(lookahead), flat_layout(k, t, c))
+        if not (isinstance(lookahead, (int, float)) and math.isfinite(lookahead) and lookahead > 0):
+            raise ValueError(f"{cfg_path}: training.env_overrides.robot_subgoal must be a number > 0, got {lookahead!r}")
+        out = GuidedPolicy(sb3, float(lookahead), flat_layout(k, t, c, r))
+    if r:
+        from navzoo.envs.config import NavConfig
+        from navzoo.envs.scan import ScanPolicy
+
+        scan_range = env_overrides.get("scan_range", NavConfig.__dataclass_fields__["scan_range"].default)
+        if not (isinstance(scan_range, (int, float)) and math.isfinite(scan_range) and scan_range > 0):
+            raise ValueError(f"{cfg_path}: training.env_overrides.scan_range must be a number > 0, got {scan_range!r}")
+        out = ScanPolicy(out, r, float(scan_range))
+    return out
+
+
+def init_weights_from(policy: Any, model_dir: str | Path) -> list[str]:
+    """Load the weights of the exported policy in ``model_dir`` into ``policy`` (an SB3 actor-critic).
+
+    The two must be the same network, except that ``policy`` may have a range-scan input
+    (``scan_rays``) that the exported one lacks: that branch keeps its initial weights, whose zero
+    output layer leaves the loaded behaviour unchanged. Returns the names of the parameters that were
+    not loaded. Raises ``ValueError`` for any other difference, naming it.
+    """
+    start = load_policy(model_dir).model
+    ext_new, ext_old = policy.features_extractor, start.features_extractor
+    same = (ext_new.k_neighbors, ext_new.history, ext_new.map_cells) == (ext_old.k_neighbors, ext_old.history,
+                                                                         ext_old.map_cells)
+    if not same or (ext_old.scan_rays and ext_old.scan_rays != ext_new.scan_rays):
+        raise ValueError(f"{model_dir}: its observation space {start.observation_space} does not fit this "
+                         f"model's {policy.observation_space}")
+    try:
+        missing, unexpected = policy.load_state_dict(start.state_dict(), strict=False)
+    except RuntimeError as err:
+        raise ValueError(f"{model_dir} has another network shape than this model: {err}") from err
+    bad = [k for k in missing if ".scan_encoder." not in k]
+    if bad or unexpected:
+        raise ValueError(f"{model_dir} does not fit this model: missing {bad}, unexpected {list(unexpected)}")
+    if missing:  # SB3's orthogonal initialisation overwrote the extractor's zero output layer: zero it again
+        with torch.no_grad():
+            for module in policy.modules():
+                if isinstance(module, SpatioTemporalExtractor) and module.scan_rays:
+                    module.scan_encoder[-1].weight.zero_()
+                    module.scan_encoder[-1].bias.zero_()
+    return list(missing)
 
 
 def register_transformer_ppo(model_dir: str | Path | None = None) -> None:
@@ -683,7 +727,8 @@ def train(args: TrainArgs) -> dict[str, Any]:
     try:
         kwargs = transformer_policy_kwargs(features_dim=args.features_dim, n_heads=args.heads, n_blocks=args.blocks,
                                            net_arch=args.net_arch,
-                                           k_neighbors=args.extra.get("k_neighbors"), history=args.extra.get("history"))
+                                           k_neighbors=args.extra.get("k_neighbors"), history=args.extra.get("history"),
+                                           scan_rays=args.extra.get("scan_rays"))
         model = PPO("MlpPolicy", vec, n_steps=args.n_steps, n_epochs=args.n_epochs, batch_size=args.batch_size,
                     learning_rate=args.lr, gamma=args.gamma, ent_coef=args.ent_coef, target_kl=args.target_kl,
                     policy_kwargs=kwargs,
@@ -696,15 +741,10 @@ def train(args: TrainArgs) -> dict[str, Any]:
             model._n_updates = int(found[1].get("n_updates", 0))
             print(json.dumps({"resumed_from": str(found[0]), "timesteps": done}), flush=True)
         elif args.init_from:
-            start = load_policy(args.init_from).model
-            if start.observation_space != model.observation_space:
-                raise ValueError(f"--init-from {args.init_from}: its observation space {start.observation_space} "
-                                 f"differs from this run's {model.observation_space}")
             try:
-                model.policy.load_state_dict(start.state_dict())
-            except RuntimeError as err:
-                raise ValueError(f"--init-from {args.init_from} has another network shape than this run's model "
-                                 f"options {args.model_options()}: {err}") from err
+                init_weights_from(model.policy, args.init_from)
+            except ValueError as err:
+                raise ValueError(f"--init-from {args.init_from} (model options {args.model_options()}): {err}") from err
             print(json.dumps({"initialised_from": str(args.init_from)}), flush=True)
         if done < args.total_steps:
 
@@ -768,6 +808,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--wall-proximity", type=float, default=None, metavar="M",
                    help="proximity-penalty distance to walls and obstacles (NavConfig.wall_proximity; default: the "
                         "paper's 0.9 m, as to people)")
+    p.add_argument("--scan-rays", type=int, default=None, metavar="R",
+                   help="robots also observe a planar range scan of the static scene with R rays (NavConfig.scan_rays; "
+                        "exact wall distances, finer than the occupancy crop); the exported policy scans by itself in "
+                        "envs without it")
+    p.add_argument("--scan-range", type=float, default=None, metavar="M",
+                   help="range of that scan (NavConfig.scan_range, default 4 m)")
     p.add_argument("--total-steps", type=int, default=d.total_steps, help="total robot steps to reach (with resumed)")
     p.add_argument("--n-steps", type=int, default=d.n_steps, help="rollout length per vector entry (paper: 32)")
     p.add_argument("--n-epochs", type=int, default=d.n_epochs, help="PPO epochs per rollout (paper: 6)")
@@ -800,7 +846,7 @@ def _env_overrides(args: argparse.Namespace) -> dict[str, Any]:
     extra: dict[str, Any] = {}
     if getattr(args, "kinematics", None):
         extra["robot"] = {"kinematics": args.kinematics}
-    for opt in ("robot_subgoal", "robot_progress", "wall_proximity"):
+    for opt in ("robot_subgoal", "robot_progress", "wall_proximity", "scan_rays", "scan_range"):
         if getattr(args, opt, None) is not None:
             extra[opt] = getattr(args, opt)
     if extra:

@@ -64,8 +64,11 @@ DEFAULT_T = 8
 DEFAULT_ROBOT_RADIUS = 0.3
 
 
-def observation_dict_space(k_neighbors: int = DEFAULT_K, history: int = DEFAULT_T, map_cells: int = 32) -> spaces.Dict:
+def observation_dict_space(k_neighbors: int = DEFAULT_K, history: int = DEFAULT_T, map_cells: int = 32,
+                           scan_rays: int = 0) -> spaces.Dict:
     """The robot observation space of a navzoo env with these sizes (the env's own bounds).
+
+    ``scan_rays > 0`` adds the ``"scan"`` entry (``NavConfig.scan_rays``).
 
     Mirrors ``NavEnv._build_observation_space``; used to rebuild a policy's spaces without an env
     and for the flat layout. ``tests/agents/test_transformer.py`` checks it against the env.
@@ -73,29 +76,35 @@ def observation_dict_space(k_neighbors: int = DEFAULT_K, history: int = DEFAULT_
     for name, v in (("k_neighbors", k_neighbors), ("history", history), ("map_cells", map_cells)):
         if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
             raise ValueError(f"{name} must be an integer >= 1, got {v!r}")
+    if not isinstance(scan_rays, (int, np.integer)) or isinstance(scan_rays, bool) or scan_rays < 0:
+        raise ValueError(f"scan_rays must be an integer >= 0, got {scan_rays!r}")
     f32 = np.float32
     b, v, g = obs_terms.POS_BOUND, obs_terms.VEL_BOUND, obs_terms.GOAL_BOUND
     lo = np.broadcast_to(np.array([-b, -b, -v, -v, -1, -1, 0], f32), (k_neighbors, history, FEATURES)).copy()
     hi = np.broadcast_to(np.array([b, b, v, v, 1, 1, 2.0], f32), (k_neighbors, history, FEATURES)).copy()
-    return spaces.Dict({
+    entries = {
         "goal": spaces.Box(np.array([-g, -g, 0, -1, -1], f32), np.array([g, g, 1.5 * g, 1, 1], f32), dtype=f32),
         "velocity": spaces.Box(-v, v, shape=(3,), dtype=f32),
         "agents": spaces.Box(lo, hi, dtype=f32),
         "agents_mask": spaces.Box(0.0, 1.0, shape=(k_neighbors, history), dtype=f32),
         "map": spaces.Box(0.0, 1.0, shape=(map_cells, map_cells), dtype=f32),
-    })
+    }
+    if scan_rays:
+        entries["scan"] = spaces.Box(0.0, 1.0, shape=(int(scan_rays),), dtype=f32)
+    return spaces.Dict(entries)
 
 
-def flat_layout(k_neighbors: int, history: int, map_cells: int) -> dict[str, tuple[int, int, tuple[int, ...]]]:
+def flat_layout(k_neighbors: int, history: int, map_cells: int,
+                scan_rays: int = 0) -> dict[str, tuple[int, int, tuple[int, ...]]]:
     """``{key: (start, end, shape)}`` of each entry in the flat observation.
 
     The order is the one ``gymnasium.spaces.flatten`` uses for the env's Dict space, i.e. the Dict's
-    key order (Gymnasium sorts the keys: agents, agents_mask, goal, map, velocity), not the order
-    the keys are listed in the docs.
+    key order (Gymnasium sorts the keys: agents, agents_mask, goal, map, [scan,] velocity), not the
+    order the keys are listed in the docs.
     """
     out: dict[str, tuple[int, int, tuple[int, ...]]] = {}
     start = 0
-    for key, sub in observation_dict_space(k_neighbors, history, map_cells).spaces.items():
+    for key, sub in observation_dict_space(k_neighbors, history, map_cells, scan_rays).spaces.items():
         n = int(np.prod(sub.shape))
         out[key] = (start, start + n, tuple(sub.shape))
         start += n
@@ -103,8 +112,8 @@ def flat_layout(k_neighbors: int, history: int, map_cells: int) -> dict[str, tup
 
 
 def _layout_from_space(observation_space: gymnasium.Space, k_neighbors: int | None,
-                       history: int | None) -> tuple[int, int, int, bool]:
-    """(K, T, C, is_flat) of a navzoo robot observation space (Dict, or its flattened Box)."""
+                       history: int | None, scan_rays: int | None = None) -> tuple[int, int, int, int, bool]:
+    """(K, T, C, R, is_flat) of a navzoo robot observation space (Dict, or its flattened Box); R = scan rays."""
     if isinstance(observation_space, spaces.Dict):
         missing = [k for k in OBS_KEYS if k not in observation_space.spaces]
         if missing:
@@ -118,30 +127,37 @@ def _layout_from_space(observation_space: gymnasium.Space, k_neighbors: int | No
         for key, want in expected.items():
             if shp[key] != want:
                 raise ValueError(f"'{key}' must have shape {want}, got {shp[key]}")
-        for name, given, found in (("k_neighbors", k_neighbors, k), ("history", history, t)):
+        r = 0
+        if "scan" in observation_space.spaces:
+            sshape = tuple(observation_space["scan"].shape)
+            if len(sshape) != 1 or sshape[0] < 1:
+                raise ValueError(f"'scan' must have shape (R,) with R >= 1, got {sshape}")
+            r = sshape[0]
+        for name, given, found in (("k_neighbors", k_neighbors, k), ("history", history, t), ("scan_rays", scan_rays, r)):
             if given is not None and given != found:
                 raise ValueError(f"{name}={given} does not match the observation space ({found})")
-        return k, t, c, False
+        return k, t, c, r, False
     if isinstance(observation_space, spaces.Box) and len(observation_space.shape) == 1:
         k = DEFAULT_K if k_neighbors is None else int(k_neighbors)
         t = DEFAULT_T if history is None else int(history)
-        if k < 1 or t < 1:
-            raise ValueError(f"k_neighbors and history must be >= 1, got {k} and {t}")
+        r = 0 if scan_rays is None else int(scan_rays)
+        if k < 1 or t < 1 or r < 0:
+            raise ValueError(f"k_neighbors and history must be >= 1 and scan_rays >= 0, got {k}, {t} and {r}")
         n = int(observation_space.shape[0])
-        rest = n - 5 - 3 - k * t * (FEATURES + 1)
+        rest = n - 5 - 3 - k * t * (FEATURES + 1) - r
         c = math.isqrt(rest) if rest > 0 else 0
         if c < 1 or c * c != rest:
             raise ValueError(
-                f"a flat observation of size {n} does not fit K={k}, T={t} (8 + K*T*8 + C*C entries with an "
-                f"integer map size C); pass the env's k_neighbors and history to the extractor")
-        lay = flat_layout(k, t, c)
+                f"a flat observation of size {n} does not fit K={k}, T={t}, R={r} (8 + K*T*8 + C*C + R entries "
+                f"with an integer map size C); pass the env's k_neighbors, history and scan_rays to the extractor")
+        lay = flat_layout(k, t, c, r)
         lo, hi = observation_space.low, observation_space.high
         for key in ("agents_mask", "map"):  # both are [0, 1] in the env: a cheap check of the layout
             s, e, _ = lay[key]
             if np.all(np.isfinite(lo)) and not (np.all(lo[s:e] == 0) and np.all(hi[s:e] == 1)):
                 raise ValueError(f"the flat observation's bounds at '{key}' [{s}:{e}] are not [0, 1]: not the "
                                  "navzoo flat layout (agents, agents_mask, goal, map, velocity)")
-        return k, t, c, True
+        return k, t, c, r, True
     raise ValueError(f"expected the navzoo robot observation (Dict or its flat Box), got {observation_space}")
 
 
@@ -204,6 +220,10 @@ class SpatioTemporalExtractor(BaseFeaturesExtractor):
         length_scale: positions, goal coordinates and distance are divided by this (m) before the MLPs.
         k_neighbors: K, for a flat Box only (default 6); with a Dict it must match or be None.
         history: T, for a flat Box only (default 8); with a Dict it must match or be None.
+        scan_rays: R, the range scan's rays (``NavConfig.scan_rays``), for a flat Box only (default 0);
+            with a Dict it must match or be None. The scan enters the query through its own MLP, whose
+            output layer starts at zero: a policy trained without a scan keeps its behaviour when its
+            weights are loaded into one with a scan (:func:`navzoo.agents.robot_train.init_weights_from`).
 
     Raises:
         ValueError: for a space that is not a navzoo robot observation, or bad sizes.
@@ -211,7 +231,8 @@ class SpatioTemporalExtractor(BaseFeaturesExtractor):
 
     def __init__(self, observation_space: gymnasium.Space, features_dim: int = 128, n_heads: int = 4,
                  n_blocks: int = 3, ff_mult: int = 2, robot_radius: float = DEFAULT_ROBOT_RADIUS,
-                 length_scale: float = 5.0, k_neighbors: int | None = None, history: int | None = None) -> None:
+                 length_scale: float = 5.0, k_neighbors: int | None = None, history: int | None = None,
+                 scan_rays: int | None = None) -> None:
         for name, v in (("features_dim", features_dim), ("n_heads", n_heads), ("n_blocks", n_blocks),
                         ("ff_mult", ff_mult)):
             if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
@@ -222,13 +243,14 @@ class SpatioTemporalExtractor(BaseFeaturesExtractor):
             raise ValueError(f"robot_radius must be a finite number > 0, got {robot_radius!r}")
         if not (math.isfinite(length_scale) and length_scale > 0):
             raise ValueError(f"length_scale must be a finite number > 0, got {length_scale!r}")
-        k, t, c, is_flat = _layout_from_space(observation_space, k_neighbors, history)
+        k, t, c, r, is_flat = _layout_from_space(observation_space, k_neighbors, history, scan_rays)
         super().__init__(observation_space, features_dim)
         self.k_neighbors, self.history, self.map_cells, self.is_flat = k, t, c, is_flat
+        self.scan_rays = r
         self.n_heads, self.n_blocks, self.ff_mult = int(n_heads), int(n_blocks), int(ff_mult)
         self.robot_radius = float(robot_radius)
         self.length_scale = float(length_scale)
-        self._layout = flat_layout(k, t, c)
+        self._layout = flat_layout(k, t, c, r)
         d = features_dim
         self.embed = nn.Sequential(nn.Linear(FEATURES, d), nn.ReLU(), nn.Linear(d, d))
         self.time_embedding = nn.Parameter(torch.randn(t, d) * 0.02)
@@ -244,12 +266,17 @@ class SpatioTemporalExtractor(BaseFeaturesExtractor):
         self.norm_q, self.norm_kv = nn.LayerNorm(d), nn.LayerNorm(d)
         self.cross = nn.MultiheadAttention(d, n_heads, batch_first=True)
         self.gate = nn.Linear(2 * d, d)
+        if r:
+            self.scan_encoder = nn.Sequential(nn.Linear(r, d), nn.ReLU(), nn.Linear(d, d))
+            nn.init.zeros_(self.scan_encoder[2].weight)
+            nn.init.zeros_(self.scan_encoder[2].bias)
 
     # ------------------------------------------------------------------ inputs
     def split(self, observations: torch.Tensor | dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         """The observation's entries as (B, ...) tensors, from a Dict batch or a flat (B, n) batch."""
         if isinstance(observations, dict):
-            return {key: observations[key].float() for key in OBS_KEYS}
+            keys = OBS_KEYS + (("scan",) if self.scan_rays else ())
+            return {key: observations[key].float() for key in keys}
         if observations.dim() != 2:
             raise ValueError(f"flat observations must be (batch, n), got shape {tuple(observations.shape)}")
         b = observations.shape[0]
@@ -295,6 +322,8 @@ class SpatioTemporalExtractor(BaseFeaturesExtractor):
         pad = torch.cat([~valid[:, 1:, -1], torch.zeros(b, 1, dtype=torch.bool, device=u.device)], dim=1)
         goal = obs["goal"] * torch.tensor([1 / self.length_scale] * 3 + [1.0, 1.0], device=u.device)
         q = self.query(torch.cat([self._scale(states[:, 0, -1]), obs["velocity"][:, 2:3], goal], dim=1))
+        if self.scan_rays:
+            q = q + self.scan_encoder(obs["scan"])
         kv = self.norm_kv(memory)
         z, _ = self.cross(self.norm_q(q)[:, None], kv, kv, key_padding_mask=pad, need_weights=False)
         z = z[:, 0]
@@ -305,20 +334,22 @@ class SpatioTemporalExtractor(BaseFeaturesExtractor):
         """The constructor arguments (JSON-able) that rebuild this extractor for the same space."""
         return {"features_dim": int(self.features_dim), "n_heads": self.n_heads, "n_blocks": self.n_blocks,
                 "ff_mult": self.ff_mult, "robot_radius": self.robot_radius, "length_scale": self.length_scale,
-                "k_neighbors": self.k_neighbors, "history": self.history}
+                "k_neighbors": self.k_neighbors, "history": self.history,
+                **({"scan_rays": self.scan_rays} if self.scan_rays else {})}
 
 
 def transformer_policy_kwargs(features_dim: int = 128, n_heads: int = 4, n_blocks: int = 3, ff_mult: int = 2,
                               net_arch: tuple[int, ...] | list[int] = (128, 128),
                               robot_radius: float = DEFAULT_ROBOT_RADIUS, length_scale: float = 5.0,
-                              k_neighbors: int | None = None, history: int | None = None) -> dict[str, Any]:
+                              k_neighbors: int | None = None, history: int | None = None,
+                              scan_rays: int | None = None) -> dict[str, Any]:
     """``policy_kwargs`` for SB3 (``PPO("MlpPolicy" | "MultiInputPolicy", env, policy_kwargs=...)``).
 
     The extractor's output ``h`` feeds separate actor and critic MLPs of widths ``net_arch``; the
     extractor is shared by both (SB3's default for on-policy algorithms).
 
     Args:
-        features_dim, n_heads, n_blocks, ff_mult, robot_radius, length_scale, k_neighbors, history:
+        features_dim, n_heads, n_blocks, ff_mult, robot_radius, length_scale, k_neighbors, history, scan_rays:
             see :class:`SpatioTemporalExtractor`.
         net_arch: hidden widths of the actor and of the critic heads.
     """
@@ -330,7 +361,7 @@ def transformer_policy_kwargs(features_dim: int = 128, n_heads: int = 4, n_block
         "features_extractor_kwargs": {"features_dim": features_dim, "n_heads": n_heads, "n_blocks": n_blocks,
                                       "ff_mult": ff_mult, "robot_radius": robot_radius,
                                       "length_scale": length_scale, "k_neighbors": k_neighbors,
-                                      "history": history},
+                                      "history": history, **({"scan_rays": scan_rays} if scan_rays else {})},
         "net_arch": {"pi": list(arch), "vf": list(arch)},
         "share_features_extractor": True,
     }

@@ -98,6 +98,13 @@ class NavConfig:
         sensor_range: neighbours farther than this are masked out (m).
         map_size: side of the local occupancy crop (m).
         map_cells: cells per side of the local occupancy crop.
+        scan_rays: rays of a planar range scan of the static scene in each robot and kinematic
+            pedestrian observation (key ``"scan"``); 0 = no scan (the default, the paper's
+            observation). Ray ``i`` points ``2 pi i / scan_rays`` counter-clockwise from the heading;
+            each entry is the distance from the agent's centre to the first wall or obstacle edge along
+            the ray, divided by ``scan_range`` (1 = nothing within range). Exact line geometry, so it
+            resolves clearances finer than the occupancy crop's cells (0.15 m by default).
+        scan_range: range of the scan (m).
         flat_obs: flatten the Dict observation into one Box (for simple learners).
         path_spacing: spacing of A* waypoints (m).
         path_clearance: extra inflation beyond the agent's radius when planning (m), so that paths
@@ -143,6 +150,8 @@ class NavConfig:
     sensor_range: float = 6.0
     map_size: float = 4.8
     map_cells: int = 32
+    scan_rays: int = 0
+    scan_range: float = 4.0
     flat_obs: bool = False
     path_spacing: float = 0.5
     path_clearance: float = 0.2
@@ -191,6 +200,10 @@ class NavConfig:
             raise bad("human_body_contacts", "a bool")
         if not isinstance(self.human_contact_penalty, bool):
             raise bad("human_contact_penalty", "a bool")
+        if not _is_int(self.scan_rays) or self.scan_rays < 0:
+            raise bad("scan_rays", "an integer >= 0 (0 = no range scan)")
+        if not _is_pos(self.scan_range):
+            raise bad("scan_range", "a finite number > 0")
         for name in ("human_radius", "human_max_speed", "dt", "min_goal_distance", "sensor_range", "map_size",
                      "path_spacing", "waypoint_tolerance", "grid_resolution"):
             if not _is_pos(getattr(self, name)):

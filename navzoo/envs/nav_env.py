@@ -25,7 +25,7 @@ from navzoo.envs.config import NavConfig
 from navzoo.envs.rewards import TERMS, RewardParams, navigation_reward
 from navzoo.envs.subgoal import RobotGuide
 from navzoo.world.builder import GROUP_ROBOT, GROUP_STATIC, build_scene
-from navzoo.world.geometry import swept_circle_hits_segments
+from navzoo.world.geometry import ray_segment_distances, swept_circle_hits_segments
 from navzoo.world.library import get_scene
 from navzoo.world.occupancy import OccupancyGrid
 from navzoo.world.planner import AStarPlanner
@@ -269,9 +269,10 @@ class NavEnv(ParallelEnv):
         agents = spaces.Box(lo, hi, dtype=f32)
         mask = spaces.Box(0.0, 1.0, shape=(k, t), dtype=f32)
         local_map = spaces.Box(0.0, 1.0, shape=(c, c), dtype=f32)
-        self._dict_space = spaces.Dict(
-            {"goal": goal, "velocity": vel, "agents": agents, "agents_mask": mask, "map": local_map}
-        )
+        entries = {"goal": goal, "velocity": vel, "agents": agents, "agents_mask": mask, "map": local_map}
+        if cfg.scan_rays:
+            entries["scan"] = spaces.Box(0.0, 1.0, shape=(cfg.scan_rays,), dtype=f32)
+        self._dict_space = spaces.Dict(entries)
         if cfg.flat_obs:
             return spaces.flatten_space(self._dict_space)
         return self._dict_space
@@ -416,11 +417,14 @@ class NavEnv(ParallelEnv):
         clearance = self.config.path_clearance
         if self.config.human_model == "amp" and i >= self.n_robots:
             clearance += AMP_PLAN_MARGIN
+        bare = self._planner(float(self.radius[i]))
         if clearance > 0:
             padded = float(self.radius[i]) + clearance
             path = self._planner(padded).plan(start, goal, spacing=self.config.path_spacing)
+            if path is None:  # a passage on the way is too narrow for the clearance: keep it where it fits
+                path = bare.plan_graded(start, goal, clearance, spacing=self.config.path_spacing)
         if path is None:
-            path = self._planner(float(self.radius[i])).plan(start, goal, spacing=self.config.path_spacing)
+            path = bare.plan(start, goal, spacing=self.config.path_spacing)
         if path is None or len(path) == 0:
             # No grid path (e.g. explicit start/goal given inside an inflated area): walk straight.
             return np.asarray(goal, dtype=np.float64).reshape(1, 2)
@@ -880,6 +884,7 @@ class NavEnv(ParallelEnv):
             cfg.k_neighbors, cfg.sensor_range, hist_present=self.hist_present,
         )
         maps = self.grid.crop_many(self.pos[idx], self.yaw[idx], cfg.map_size, cfg.map_cells)
+        scans = self.range_scan(idx) if cfg.scan_rays else None
         for n, a in enumerate(agents):
             o = {
                 "goal": goal[n].astype(np.float32),
@@ -888,8 +893,27 @@ class NavEnv(ParallelEnv):
                 "agents_mask": mask[n],
                 "map": maps[n].astype(np.float32),
             }
+            if scans is not None:
+                o["scan"] = scans[n]
             out[a] = spaces.flatten(self._dict_space, o).astype(np.float32) if cfg.flat_obs else o
         return out
+
+    def range_scan(self, idx: np.ndarray, rays: int | None = None, scan_range: float | None = None) -> np.ndarray:
+        """The ``"scan"`` observation of agents ``idx``: ``(len(idx), rays)`` float32 in [0, 1].
+
+        Distances from each agent's centre to the static scene's edges (walls, obstacles, the scene
+        bounds) along ``rays`` rays from its heading (ray ``i`` at ``2 pi i / rays``, counter-clockwise),
+        over ``scan_range``; both default to the env's ``NavConfig.scan_rays`` / ``scan_range``.
+        """
+        rays = self.config.scan_rays if rays is None else int(rays)
+        rng = self.config.scan_range if scan_range is None else float(scan_range)
+        if rays < 1:
+            raise ValueError(f"range_scan needs rays >= 1 (NavConfig.scan_rays is {self.config.scan_rays})")
+        idx = np.asarray(idx, dtype=int).reshape(-1)
+        rel = 2.0 * np.pi * np.arange(rays) / rays
+        ang = self.yaw[idx][:, None] + rel[None, :]
+        d = ray_segment_distances(self.pos[idx], ang, self.segments, rng)
+        return (d / rng).astype(np.float32)
 
     def _base_info(self, agent: str) -> dict[str, Any]:
         i = self._index[agent]

@@ -102,6 +102,8 @@ class RobotGuide:
         path = None
         if self.clearance > 0:
             path = self._planner(r + self.clearance).plan(start, goal, spacing=self.spacing)
+            if path is None:  # a passage on the way is too narrow for the clearance: keep it where it fits
+                path = self._planner(r).plan_graded(start, goal, self.clearance, spacing=self.spacing)
         if path is None:
             path = self._planner(r).plan(start, goal, spacing=self.spacing)
         if path is None or len(path) == 0:
@@ -149,16 +151,24 @@ class RobotGuide:
         if near.size == 0:
             return None
         r = float(self.radii[i])
-        # Sight lines keep the planning clearance where they can (so that a robot driving straight at
-        # its subgoal does not graze corners), else the bare radius.
-        for radius in (r,):
-            los = self._planner(radius).line_of_sight
-            for j in near[::-1]:  # farthest along the path first
-                if los(p, path[k0 + j]):
-                    # Progress along the path is monotone: never look behind the closest visible point again.
-                    closest = int(np.argmin(d[: j + 1]))
-                    self.index[i] = k0 + closest
-                    return path[k0 + j].copy()
+        planner = self._planner(r)
+        if self.clearance > 0:
+            # A sight line must not run nearer to walls than the path it replaces (plus a tenth of the
+            # clearance band): a robot driving straight at its subgoal then does not graze the corner of
+            # a door that the path goes through in the middle.
+            pen = planner.clearance_penalty(self.clearance)
+            rc = self.grid.world_to_cell(np.concatenate([p[None], path[k0:k0 + int(near[-1]) + 1]]))
+            h, w = pen.shape
+            pt_pen = np.maximum.accumulate(pen[np.clip(rc[:, 0], 0, h - 1), np.clip(rc[:, 1], 0, w - 1)])
+        for j in near[::-1]:  # farthest along the path first
+            if not planner.line_of_sight(p, path[k0 + j]):
+                continue
+            if self.clearance > 0 and planner.penalty_along(p, path[k0 + j], self.clearance) > pt_pen[j + 1] + 0.1:
+                continue
+            # Progress along the path is monotone: never look behind the closest visible point again.
+            closest = int(np.argmin(d[: j + 1]))
+            self.index[i] = k0 + closest
+            return path[k0 + j].copy()
         return None
 
     def geodesic(self, i: int, xy: np.ndarray) -> float:

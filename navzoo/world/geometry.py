@@ -296,6 +296,40 @@ def swept_circle_hits_segments(
     return dist < np.asarray(radius, dtype=np.float64)
 
 
+def ray_segment_distances(
+    origins: ArrayLike, angles: ArrayLike, segments: ArrayLike, max_range: float
+) -> np.ndarray:
+    """Distance along each ray to the first segment it crosses, ``(N, R)``, at most ``max_range``.
+
+    ``origins`` are ``(N, 2)`` points and ``angles`` ``(N, R)`` (or ``(R,)``, shared) world angles in
+    radians. Exact 2D ray-segment intersection (a planar range scan of line geometry); a ray that meets
+    nothing within ``max_range`` reads ``max_range``. Segments touched at the origin read 0.
+    """
+    o = as_points(origins)
+    ang = np.asarray(angles, dtype=np.float64)
+    if ang.ndim == 1:
+        ang = np.broadcast_to(ang, (o.shape[0], ang.shape[0]))
+    if ang.ndim != 2 or ang.shape[0] != o.shape[0]:
+        raise ValueError(f"angles must be (R,) or (N, R) with N = {o.shape[0]}, got {ang.shape}")
+    if not (np.isfinite(max_range) and max_range > 0):
+        raise ValueError(f"max_range must be a finite number > 0, got {max_range!r}")
+    out = np.full(ang.shape, float(max_range))
+    seg = as_segments(segments)
+    if seg.shape[0] == 0 or ang.size == 0:
+        return out
+    d = np.stack([np.cos(ang), np.sin(ang)], axis=-1)[:, :, None, :]  # (N, R, 1, 2)
+    a = seg[None, None, :, 0, :]  # (1, 1, M, 2)
+    e = seg[None, None, :, 1, :] - a  # segment direction
+    w = a - o[:, None, None, :]  # origin -> segment start, (N, 1, M, 2)
+    den = d[..., 0] * e[..., 1] - d[..., 1] * e[..., 0]  # cross(d, e)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (w[..., 0] * e[..., 1] - w[..., 1] * e[..., 0]) / den  # distance along the ray
+        u = (w[..., 0] * d[..., 1] - w[..., 1] * d[..., 0]) / den  # position along the segment
+    hit = (np.abs(den) > 1e-12) & (t >= 0.0) & (u >= 0.0) & (u <= 1.0)
+    t = np.where(hit, t, np.inf).min(axis=-1)
+    return np.minimum(out, t)
+
+
 # ---------------------------------------------------------------------------------------------------------
 # Polygon validity and triangulation
 # ---------------------------------------------------------------------------------------------------------

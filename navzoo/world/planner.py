@@ -89,6 +89,7 @@ class AStarPlanner:
         self._labels = labels
         self._graph = None
         self._field_cache: dict[tuple[int, int], np.ndarray] = {}
+        self._graded_cache: dict[tuple[Any, ...], Any] = {}  # clearance penalties and cost factors
 
     # ------------------------------------------------------------------ helpers
 
@@ -152,8 +153,12 @@ class AStarPlanner:
             return False
         return not bool(g.occ[q[:, 1], q[:, 0]].any())
 
-    def _astar(self, start: int, goal: int) -> list[int] | None:
-        """A* over padded flat indices; returns the list of flat indices start..goal or None."""
+    def _astar(self, start: int, goal: int, mult: list[float] | None = None) -> list[int] | None:
+        """A* over padded flat indices; returns the list of flat indices start..goal or None.
+
+        ``mult``: optional per-cell cost factors (>= 1, padded flat indices): a move into cell ``nb``
+        costs its length times ``mult[nb]`` (the octile heuristic stays admissible).
+        """
         rows, cols = self._row_list, self._col_list
         masks, by_mask = self._mask_list, self._moves_by_mask
         gr, gc = rows[goal], cols[goal]
@@ -184,7 +189,7 @@ class AStarPlanner:
             gcur = g_cost[cur]
             for off, cost in by_mask[masks[cur]]:
                 nb = cur + off
-                ng = gcur + cost
+                ng = gcur + (cost if mult is None else cost * mult[nb])
                 if ng < g_cost[nb] and not closed[nb]:
                     g_cost[nb] = ng
                     parent[nb] = cur
@@ -198,14 +203,20 @@ class AStarPlanner:
                     push(heap, (ng + h, h, nb))
         return None
 
-    def _shortcut(self, pts: np.ndarray) -> np.ndarray:
+    def _shortcut(self, pts: np.ndarray, visible: Any = None) -> np.ndarray:
         """Line-of-sight shortcutting ("string pulling"); never increases the length.
 
         From each kept point, the farthest visible later point is searched by exponential then binary
         search (O(log K) line-of-sight checks per kept point). Consecutive input points are visible from
         each other by construction, and only tested-visible shortcuts are taken, so the output is valid;
-        replacing a sub-path by a straight segment never makes it longer.
+        replacing a sub-path by a straight segment never makes it longer. ``visible(i, j)`` replaces the
+        line-of-sight test between points ``i`` and ``j`` (default: :meth:`line_of_sight`).
         """
+        if visible is None:
+
+            def visible(i: int, j: int) -> bool:
+                return self.line_of_sight(pts[i], pts[j])
+
         n = pts.shape[0]
         if n <= 2:
             return pts
@@ -215,7 +226,7 @@ class AStarPlanner:
             lo, hi, step = a + 1, n, 2
             while lo < n - 1:
                 cand = min(a + step, n - 1)
-                if self.line_of_sight(pts[a], pts[cand]):
+                if visible(a, cand):
                     lo = cand
                     step *= 2
                 else:
@@ -223,7 +234,7 @@ class AStarPlanner:
                     break
             while hi - lo > 1:
                 mid = (lo + hi) // 2
-                if self.line_of_sight(pts[a], pts[mid]):
+                if visible(a, mid):
                     lo = mid
                 else:
                     hi = mid
@@ -279,6 +290,92 @@ class AStarPlanner:
         if raw is None:
             return None
         corners = self._shortcut(raw)
+        return _resample(corners, float(spacing))
+
+    # ------------------------------------------------------------------ clearance-graded planning
+
+    def clearance_penalty(self, clearance: float) -> np.ndarray:
+        """Per-cell penalty in [0, 1] for being closer than ``agent_radius + clearance`` to an obstacle.
+
+        ``clip((agent_radius + clearance - d) / clearance, 0, 1)`` with ``d`` the cell centre's distance
+        to the nearest occupied cell (:meth:`OccupancyGrid.distance_field`): 0 where the agent keeps the
+        full clearance, rising to 1 at the edge of its free space. Cached per clearance (read-only).
+        """
+        clearance = float(clearance)
+        if not (math.isfinite(clearance) and clearance > 0):
+            raise ValueError(f"clearance must be a finite number > 0 (m), got {clearance!r}")
+        key = ("penalty", clearance)
+        if key not in self._graded_cache:
+            d = self.grid.distance_field().astype(np.float64)
+            pen = np.clip((self.agent_radius + clearance - d) / clearance, 0.0, 1.0)
+            pen.setflags(write=False)
+            self._graded_cache[key] = pen
+        return self._graded_cache[key]
+
+    def penalty_along(self, p0: ArrayLike, p1: ArrayLike, clearance: float, step: float | None = None) -> float:
+        """Largest :meth:`clearance_penalty` of the cells under the segment ``p0``-``p1`` (sampled every
+        half cell, or every ``step`` m)."""
+        pen = self.clearance_penalty(clearance)
+        a = np.asarray(p0, dtype=np.float64).reshape(2)
+        b = np.asarray(p1, dtype=np.float64).reshape(2)
+        step = 0.5 * self.grid.resolution if step is None else float(step)
+        n = max(int(math.ceil(float(np.linalg.norm(b - a)) / step)), 1)
+        pts = a + np.linspace(0.0, 1.0, n + 1)[:, None] * (b - a)
+        rc = self.grid.world_to_cell(pts)
+        r = np.clip(rc[:, 0], 0, self._h - 1)
+        c = np.clip(rc[:, 1], 0, self._w - 1)
+        return float(pen[r, c].max())
+
+    def plan_graded(self, start_xy: ArrayLike, goal_xy: ArrayLike, clearance: float, spacing: float = 0.5,
+                    weight: float = 4.0) -> np.ndarray | None:
+        """Like :meth:`plan`, but keeping ``clearance`` (m) beyond the agent's radius wherever the free
+        space allows it, and centring the path in passages too narrow for it.
+
+        Planning on a grid inflated by ``radius + clearance`` fails as soon as one door on the way is
+        narrower than that; falling back to the bare radius then gives a path that hugs every wall and
+        corner at exactly the radius. Here the search runs on the bare-radius grid, and a move into a
+        cell costs ``1 + weight * penalty`` times its length (:meth:`clearance_penalty`), so that the
+        path pays for every metre it spends near obstacles and, in a door, runs along its middle. The
+        shortcutting only takes straight segments whose penalty stays within that of the cells they
+        replace (plus a tenth of the band), so it does not cut corners back into the band.
+
+        Returns ``None`` when no path exists for the bare radius.
+        """
+        if spacing <= 0:
+            raise ValueError(f"spacing must be > 0, got {spacing}")
+        if not (math.isfinite(weight) and weight >= 0):
+            raise ValueError(f"weight must be a finite number >= 0, got {weight!r}")
+        pen = self.clearance_penalty(clearance)
+        s = self._snap(np.asarray(start_xy, dtype=np.float64).reshape(2))
+        g = self._snap(np.asarray(goal_xy, dtype=np.float64).reshape(2))
+        if s is None or g is None:
+            return None
+        (s_xy, s_rc), (g_xy, g_rc) = s, g
+        if self._labels[s_rc] != self._labels[g_rc]:
+            return None
+        key = ("mult", float(clearance), float(weight))
+        if key not in self._graded_cache:
+            self._graded_cache[key] = (1.0 + weight * np.pad(pen, 1, constant_values=1.0)).ravel().tolist()
+        wp = self._wp
+        si = (s_rc[0] + 1) * wp + (s_rc[1] + 1)
+        gi = (g_rc[0] + 1) * wp + (g_rc[1] + 1)
+        cells = self._astar(si, gi, self._graded_cache[key])
+        if cells is None:  # pragma: no cover - labels already guarantee connectivity
+            return None
+        idx = np.asarray(cells, dtype=np.int64)
+        rc = np.stack([idx // wp - 1, idx % wp - 1], axis=1)
+        centres = self.inflated.cell_to_world(rc)
+        raw = (np.stack([s_xy, g_xy]) if centres.shape[0] == 1
+               else np.concatenate([s_xy[None], centres[1:-1], g_xy[None]], axis=0))
+        pts_rc = self.grid.world_to_cell(raw)
+        pt_pen = pen[np.clip(pts_rc[:, 0], 0, self._h - 1), np.clip(pts_rc[:, 1], 0, self._w - 1)]
+
+        def visible(i: int, j: int) -> bool:
+            if not self.line_of_sight(raw[i], raw[j]):
+                return False
+            return self.penalty_along(raw[i], raw[j], clearance) <= float(pt_pen[i:j + 1].max()) + 0.1
+
+        corners = self._shortcut(raw, visible)
         return _resample(corners, float(spacing))
 
     def path_length(self, path: ArrayLike | None) -> float:

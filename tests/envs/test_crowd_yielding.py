@@ -28,7 +28,8 @@ def test_home_crowd_deadlocks_without_turn_taking_and_flows_with_it():
     goals_on, frozen_on = _goals_and_still(True)
     assert frozen_off >= 4, "without turn-taking the home crowd should freeze (else this test checks nothing)"
     assert frozen_on == 0
-    assert goals_on >= goals_off + 6  # measured: 4 goals vs 12
+    # measured: 5 goals vs 10 (paths with graded clearance since 2026-11-22; 4 vs 12 before)
+    assert goals_on >= goals_off + 4
 
 
 def test_crowdnav_presets_keep_rvo2_people_without_turn_taking():

@@ -14,6 +14,9 @@
 #                                   (default "station:8 grocery:10 home:14" / "station:4 grocery:6 home:8");
 #   EXPERT_SEED                     seed step of the expert blocks (default 1000): later rounds on the same
 #                                   machine add new episodes instead of rewriting the same shards;
+#   SCAN_RAYS                       record a range scan with this many rays (NavConfig.scan_rays; default 0);
+#   INIT                            the policy the fit starts from (default policies/transformer_ppo_crowdnav;
+#                                   e.g. the LEARNER, to refit a DAgger round from the previous round's weights);
 #   BC_EPOCHS, COLLECT_TIMEOUT (s), VAL=0 (skip the validation benchmark), VAL_TIMEOUT (s).
 # Every shard in DEMO_DIR is used by the fit, those of earlier rounds on the same machine included.
 set -uo pipefail
@@ -28,20 +31,20 @@ pids=()
 for k in $(seq 1 "$eblocks"); do
   for spec in $specs; do
     timeout ${COLLECT_TIMEOUT:-330} python3 -m navzoo.agents.robot_bc collect --out "$demos" --scenes "${spec%%:*}" \
-      --episodes "${spec##*:}" --seed $((eseed * k)) 2>&1 | grep -v '^b3' >> "$OUT/collect.log" &
+      --episodes "${spec##*:}" --seed $((eseed * k)) --scan-rays ${SCAN_RAYS:-0} 2>&1 | grep -v '^b3' >> "$OUT/collect.log" &
     pids+=($!)
   done
 done
 for k in $(seq 1 "$lblocks"); do
   for spec in $lspecs; do
     timeout ${COLLECT_TIMEOUT:-330} python3 -m navzoo.agents.robot_bc collect --out "$demos" --scenes "${spec%%:*}" \
-      --episodes "${spec##*:}" --seed $((${SEED_BASE:-100} * k)) --learner "$learner" --beta ${BETA:-0.5} \
+      --episodes "${spec##*:}" --seed $((${SEED_BASE:-100} * k)) --learner "$learner" --beta ${BETA:-0.5} --scan-rays ${SCAN_RAYS:-0} \
       2>&1 | grep -v '^b3' >> "$OUT/collect.log" &
     pids+=($!)
   done
 done
 [ ${#pids[@]} -gt 0 ] && wait "${pids[@]}"
-python3 -m navzoo.agents.robot_bc pretrain --demos "$demos" --out "$bc" --init-from policies/transformer_ppo_crowdnav \
+python3 -m navzoo.agents.robot_bc pretrain --demos "$demos" --out "$bc" --init-from "${INIT:-policies/transformer_ppo_crowdnav}" \
   --epochs ${BC_EPOCHS:-$epochs} --device cuda 2>&1 | grep -v '^b3' > "$OUT/pretrain.log"
 cp "$bc/policy/config.json" "$bc/policy/policy.pt" "$OUT/"
 python3 -c "import glob,numpy as np;print('demo steps in $demos:', sum(len(np.load(f)['action']) for f in glob.glob('$demos/*.npz')))" \
