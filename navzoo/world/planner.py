@@ -250,6 +250,10 @@ class AStarPlanner:
         Start/goal in inflated space are snapped (see class docstring); returns None if snapping fails or
         the goal is unreachable.
         """
+        return self._raw_path(start_xy, goal_xy)
+
+    def _raw_path(self, start_xy: ArrayLike, goal_xy: ArrayLike, mult: list[float] | None = None) -> np.ndarray | None:
+        """:meth:`plan_raw` with optional per-cell cost factors (see :meth:`_astar`)."""
         s = self._snap(np.asarray(start_xy, dtype=np.float64).reshape(2))
         g = self._snap(np.asarray(goal_xy, dtype=np.float64).reshape(2))
         if s is None or g is None:
@@ -260,7 +264,7 @@ class AStarPlanner:
         wp = self._wp
         si = (s_rc[0] + 1) * wp + (s_rc[1] + 1)
         gi = (g_rc[0] + 1) * wp + (g_rc[1] + 1)
-        cells = self._astar(si, gi)
+        cells = self._astar(si, gi, mult)
         if cells is None:  # pragma: no cover - labels already guarantee connectivity
             return None
         idx = np.asarray(cells, dtype=np.int64)
@@ -346,27 +350,12 @@ class AStarPlanner:
         if not (math.isfinite(weight) and weight >= 0):
             raise ValueError(f"weight must be a finite number >= 0, got {weight!r}")
         pen = self.clearance_penalty(clearance)
-        s = self._snap(np.asarray(start_xy, dtype=np.float64).reshape(2))
-        g = self._snap(np.asarray(goal_xy, dtype=np.float64).reshape(2))
-        if s is None or g is None:
-            return None
-        (s_xy, s_rc), (g_xy, g_rc) = s, g
-        if self._labels[s_rc] != self._labels[g_rc]:
-            return None
         key = ("mult", float(clearance), float(weight))
         if key not in self._graded_cache:
             self._graded_cache[key] = (1.0 + weight * np.pad(pen, 1, constant_values=1.0)).ravel().tolist()
-        wp = self._wp
-        si = (s_rc[0] + 1) * wp + (s_rc[1] + 1)
-        gi = (g_rc[0] + 1) * wp + (g_rc[1] + 1)
-        cells = self._astar(si, gi, self._graded_cache[key])
-        if cells is None:  # pragma: no cover - labels already guarantee connectivity
+        raw = self._raw_path(start_xy, goal_xy, self._graded_cache[key])
+        if raw is None:
             return None
-        idx = np.asarray(cells, dtype=np.int64)
-        rc = np.stack([idx // wp - 1, idx % wp - 1], axis=1)
-        centres = self.inflated.cell_to_world(rc)
-        raw = (np.stack([s_xy, g_xy]) if centres.shape[0] == 1
-               else np.concatenate([s_xy[None], centres[1:-1], g_xy[None]], axis=0))
         pts_rc = self.grid.world_to_cell(raw)
         pt_pen = pen[np.clip(pts_rc[:, 0], 0, self._h - 1), np.clip(pts_rc[:, 1], 0, self._w - 1)]
 
