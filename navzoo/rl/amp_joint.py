@@ -12,9 +12,12 @@ pedestrian of every env copy is one row of the learner's batch, and its reward i
   transitions against the reference motions. The style reward is never switched off during joint
   training.
 
-The robots are frozen: a baseline, or a learned robot policy registered as a benchmark method (e.g.
-``transformer-ppo-crowdnav-diffdrive``). Robots and AMP pedestrians learning at the same time is not
-supported yet.
+The robots are frozen -- a baseline, a learned robot policy registered as a benchmark method (e.g.
+``transformer-ppo-crowdnav-diffdrive``) or an exported one (``sb3:DIR``) -- or they learn at the same
+time (``robot_learn``): SB3 PPO with the transformer actor-critic, fed one robot decision every
+``action_repeat`` env steps from inside the AMP learner's loop (:class:`navzoo.rl.stepped_ppo.SteppedPPO`),
+on the env's robot reward. Both learners checkpoint together (the robots' state rides in the AMP
+checkpoint) and resume together.
 
 An env copy restarts as a whole when one of its pedestrians falls or its episode ends (time limit,
 or every robot done). The pedestrians that fell are *terminated*; the others are *truncated* and
@@ -62,18 +65,27 @@ class NavAmpVecEnv:
         n_envs: env copies, stepped in this process.
         n_humans: pedestrians per copy (each is one row of the batch).
         n_robots: robots per copy (0: pedestrians only).
-        robot_policy: the frozen robots' policy: a benchmark method name (``navzoo.agents.baselines``).
+        robot_policy: the frozen robots' policy: a benchmark method name (``navzoo.agents.baselines``) or
+            ``sb3:DIR`` (an exported robot policy folder).
         seed: copy ``k``'s episodes are seeded from ``seed`` and ``k``.
         env_overrides: further NavConfig fields (``crowd_model``, ``time_limit``, ...).
         reference: the style reference (default: the controller's training reference).
         amp_window: frames per discriminator input (the shipped controller's: 2).
+        robot_learn: robots learn with this :class:`~navzoo.rl.stepped_ppo.RobotLearnConfig` (then
+            ``robot_policy`` is not used); None: they are frozen on ``robot_policy``.
+        log_dir: the learning robots' TensorBoard and ``robot_metrics.jsonl``.
+
+    With learning robots, all robots decide together every ``robot_learn.action_repeat`` env steps (one
+    row per robot of every copy). A copy that restarts between two decisions ends its robots' rows there
+    (truncated, bootstrapped from their last observation); its new robots stand still until the next
+    decision, at most ``action_repeat - 1`` steps. A robot that finished while others of its copy go on
+    is a zero padding row (zero reward, ended at every decision) until the copy restarts.
     """
 
     def __init__(self, env_id: str, n_envs: int, n_humans: int, n_robots: int = 1, robot_policy: str = "orca",
                  seed: int = 0, env_overrides: dict[str, Any] | None = None, reference: Any = None,
-                 amp_window: int = 2) -> None:
+                 amp_window: int = 2, robot_learn: Any = None, log_dir: str | Path | None = None) -> None:
         import navzoo
-        from navzoo.agents import baselines
         from navzoo.agents.amp.features import FEATURE_DIM
         from navzoo.agents.amp.path_env import PathTaskConfig, amp_obs_version
         from navzoo.agents.amp.sim import ACTION_DIM
@@ -101,8 +113,32 @@ class NavAmpVecEnv:
         self.amp_obs_dim = self.window * int(FEATURE_DIM)
         self.reference = reference if reference is not None else grounded_locomotion_reference()
         self.amp_obs_version = amp_obs_version(PathTaskConfig(amp_velocity="finite_difference"), self.reference)
-        self.robot_policy_name = robot_policy
-        self.robot_policies = [baselines.make_policy(robot_policy) for _ in self.envs] if self.n_robots else []
+        self.robots = list(env0.possible_agents[:self.n_robots])
+        self.robot_learner = None
+        if robot_learn is not None:
+            from navzoo.rl.stepped_ppo import SteppedPPO
+
+            if not self.n_robots:
+                raise ValueError("learning robots need n_robots >= 1")
+            self.robot_policy_name = "learn"
+            self.robot_policies = []
+            self.robot_learner = SteppedPPO(env0.observation_space(self.robots[0]), env0.action_space(self.robots[0]),
+                                            self.n_copies * self.n_robots, robot_learn, seed=int(seed),
+                                            log_dir=log_dir, env_overrides=overrides)
+            R = self.n_copies * self.n_robots
+            self._repeat = int(robot_learn.action_repeat)
+            self._tick = 0
+            self._r_open = False
+            self._r_act = np.zeros((R, int(env0.action_space(self.robots[0]).shape[0])), dtype=np.float32)
+            self._r_acc = np.zeros(R, dtype=np.float32)
+            self._r_done = np.zeros(R, dtype=bool)
+            self._r_pad = np.zeros(R, dtype=bool)
+            self._r_stale = np.zeros(R, dtype=bool)
+            self._r_final: dict[int, np.ndarray] = {}
+            self._r_events: dict[int, str] = {}
+        else:
+            self.robot_policy_name = robot_policy
+            self.robot_policies = [_robot_policy(robot_policy) for _ in self.envs] if self.n_robots else []
         self.seed = int(seed)
         self._episodes = np.zeros(self.n_copies, dtype=np.int64)
         self._robot_obs: list[dict[str, Any]] = [{} for _ in self.envs]
@@ -160,6 +196,11 @@ class NavAmpVecEnv:
         self._window[self._rows(k)] = amp_features(state)[:, None, :]
 
     def reset(self, seed: int | None = None) -> np.ndarray:
+        if self.robot_learner is not None:
+            if self._r_open:  # every robot episode is cut here: close the open decision
+                self.robot_learner.observe(self._r_acc, np.ones_like(self._r_done), padding=self._r_pad)
+                self._r_open = False
+            self._tick = 0
         if seed is not None:
             self.seed = int(seed)
             self._episodes[:] = 0
@@ -181,10 +222,18 @@ class NavAmpVecEnv:
         amp_obs = np.zeros((E, self.amp_obs_dim), dtype=np.float32)
         final_obs = self._obs.copy()
         s = self._stats
+        learn = self.robot_learner is not None
+        if learn and self._tick == 0:
+            self._robot_decide()
         for k, env in enumerate(self.envs):
             rows = self._rows(k)
             acts: dict[str, np.ndarray] = {h: a[rows][j] for j, h in enumerate(self.humans)}
-            if self.n_robots:
+            if learn:
+                for i, r in enumerate(self.robots):
+                    row = k * self.n_robots + i
+                    if r in env.agents:
+                        acts[r] = np.zeros_like(self._r_act[row]) if self._r_stale[row] else self._r_act[row]
+            elif self.n_robots:
                 live = {r: o for r, o in self._robot_obs[k].items() if r in env.agents}
                 if live:
                     acts.update(self.robot_policies[k].act(live, env))
@@ -218,6 +267,8 @@ class NavAmpVecEnv:
                     s["robot_goals"] += int(ev == "goal")
                     s["robot_collisions"] += int(str(ev).startswith("collision"))
             restart = h_term.any() or h_trunc.any() or not any(h in env.agents for h in self.humans)
+            if learn:
+                self._robot_outcomes(k, obs, rew, term, trunc, info, restart)
             if restart:
                 terminated[rows] = h_term
                 truncated[rows] = ~h_term
@@ -225,10 +276,68 @@ class NavAmpVecEnv:
                 self._reset_copy(k)
             else:
                 self._obs[rows] = new_obs
+        if learn:
+            self._tick = (self._tick + 1) % self._repeat
         info_out: dict[str, Any] = {"amp_obs": amp_obs}
         if (terminated | truncated).any():
             info_out["final_obs"] = final_obs
         return self._obs.copy(), reward, terminated, truncated, info_out
+
+    # ------------------------------------------------------------------ learning robots
+    def _robot_decide(self) -> None:
+        """Close the last decision (rewards, ends) and sample the next one for every robot row."""
+        L = self.robot_learner
+        if self._r_open:
+            L.observe(self._r_acc, self._r_done | self._r_pad, final_obs=self._r_final, events=self._r_events,
+                      padding=self._r_pad)
+        obs = np.zeros((self.n_copies * self.n_robots, *L.model.observation_space.shape), dtype=np.float32)
+        pad = np.zeros(len(obs), dtype=bool)
+        for k, env in enumerate(self.envs):
+            for i, r in enumerate(self.robots):
+                row = k * self.n_robots + i
+                if r in env.agents and r in self._robot_obs[k]:
+                    obs[row] = self._robot_obs[k][r]
+                else:
+                    pad[row] = True
+        self._r_act = L.act(obs).astype(np.float32)
+        self._r_acc[:] = 0.0
+        self._r_done[:] = False
+        self._r_stale[:] = False
+        self._r_pad = pad
+        self._r_final, self._r_events = {}, {}
+        self._r_open = True
+
+    def _robot_outcomes(self, k: int, obs: dict[str, Any], rew: dict[str, float], term: dict[str, bool],
+                        trunc: dict[str, bool], info: dict[str, Any], restart: bool) -> None:
+        """Add copy ``k``'s robot rewards of this step to the open decision; end rows whose robot finished
+        or whose copy restarts (truncated: bootstrapped from the last observation)."""
+        for i, r in enumerate(self.robots):
+            row = k * self.n_robots + i
+            if self._r_stale[row] or self._r_pad[row] or self._r_done[row]:
+                continue
+            self._r_acc[row] += float(rew.get(r, 0.0))
+            ended = bool(term.get(r, False)) or bool(trunc.get(r, False))
+            if ended or restart:
+                self._r_done[row] = True
+                self._r_events[row] = str(info.get(r, {}).get("event", "truncated")) if ended else "truncated"
+                if not term.get(r, False) and r in obs:
+                    self._r_final[row] = np.asarray(obs[r], np.float32)
+        if restart:
+            self._r_stale[k * self.n_robots:(k + 1) * self.n_robots] = True
+
+    def companion_state(self) -> dict[str, Any] | None:
+        """The learning robots' state, saved inside the AMP learner's checkpoint (None: frozen robots)."""
+        return None if self.robot_learner is None else {"robot_learner": self.robot_learner.state_dict()}
+
+    def load_companion_state(self, state: dict[str, Any] | None) -> None:
+        """Restore :meth:`companion_state` from an AMP checkpoint; ``ValueError`` if it does not fit."""
+        if self.robot_learner is None:
+            return
+        if not state or "robot_learner" not in state:
+            raise ValueError("it holds no learning robots' state (made by a run whose robots were frozen)")
+        self.robot_learner.load_state_dict(state["robot_learner"])
+        self._r_open = False
+        self._tick = 0
 
     def sample_reference_amp_obs(self, n: int, rng: np.random.Generator) -> np.ndarray:
         from navzoo.agents.amp.path_env import reference_amp_windows
@@ -238,6 +347,21 @@ class NavAmpVecEnv:
     def close(self) -> None:
         for env in self.envs:
             env.close()
+
+
+def _robot_policy(spec: str) -> Any:
+    """A frozen robot policy: a benchmark method name, or ``sb3:DIR`` (an exported robot policy folder, e.g.
+    the ``robot_policy/`` of a run whose robots learned)."""
+    from navzoo.agents import baselines
+
+    if isinstance(spec, str) and spec.startswith("sb3:"):
+        from navzoo.agents.robot_train import load_policy
+
+        path = Path(spec[4:])
+        if not (path / "config.json").is_file():
+            raise FileNotFoundError(f"robot policy {spec!r}: {path} is not an exported robot policy folder")
+        return load_policy(path)
+    return baselines.make_policy(spec)
 
 
 # ---------------------------------------------------------------------- the shipped starting point
@@ -280,6 +404,7 @@ class AmpJointArgs:
     time_limit_s: float | None = None
     ckpt_every: int = 10
     env: dict[str, Any] = field(default_factory=dict)
+    robot_learn: dict[str, Any] | None = None  # RobotLearnConfig fields: robots learn too; None: frozen robots
 
 
 def _learner_config(args: AmpJointArgs, saved: dict[str, Any]):
@@ -309,6 +434,18 @@ def train(args: AmpJointArgs) -> dict[str, Any]:
     saved_args = out / "amp_joint_args.json"
     mine = dataclasses.asdict(args)
     fixed = ("env_id", "n_envs", "n_humans", "n_robots", "robot_policy", "init", "env")
+    robot_cfg = None
+    if args.robot_learn is not None:
+        from navzoo.rl.stepped_ppo import RobotLearnConfig
+
+        if not isinstance(args.robot_learn, dict):
+            raise ValueError(f"robot_learn must be a mapping of RobotLearnConfig fields, got {args.robot_learn!r}")
+        names = {f.name for f in dataclasses.fields(RobotLearnConfig)}
+        unknown = sorted(set(args.robot_learn) - names)
+        if unknown:
+            raise ValueError(f"unknown robot_learn key(s) {unknown}; valid keys: {sorted(names)}")
+        robot_cfg = RobotLearnConfig(**args.robot_learn)
+        mine["robot_policy"] = "learn"
     if saved_args.is_file() and ckpt.latest_checkpoint(out / "checkpoints") is not None:
         old = json.loads(saved_args.read_text())
         diff = [k for k in fixed if old.get(k) != mine.get(k)]
@@ -321,7 +458,7 @@ def train(args: AmpJointArgs) -> dict[str, Any]:
         start = shipped_training_checkpoint(tmp) if args.init == "shipped" else Path(args.init)
         _, meta = ckpt.load_checkpoint(start)
         env = NavAmpVecEnv(args.env_id, args.n_envs, args.n_humans, args.n_robots, args.robot_policy, args.seed,
-                           args.env)
+                           args.env, robot_learn=robot_cfg, log_dir=out)
         try:
             learner = AmpLearner(env, _learner_config(args, meta.get("config") or {}), device=args.device)
             resumed = ckpt.latest_checkpoint(out / "checkpoints") is not None
@@ -332,6 +469,11 @@ def train(args: AmpJointArgs) -> dict[str, Any]:
             result = learner.train(start_step + args.steps, log_dir=out, ckpt_dir=out / "checkpoints",
                                    ckpt_every=args.ckpt_every, verbose=True, time_limit_s=args.time_limit_s)
             learner.export_policy(out / "policy")
+            if env.robot_learner is not None:
+                env.robot_learner.export(out / "robot_policy", {
+                    "trained_with": "python -m navzoo.rl.amp_joint train (robots learning among learning AMP "
+                                    "pedestrians)", "env_id": args.env_id, "n_humans": args.n_humans,
+                    "n_robots": args.n_robots, "env_overrides": args.env})
             stats = env.stats()
         finally:
             env.close()
@@ -339,6 +481,9 @@ def train(args: AmpJointArgs) -> dict[str, Any]:
                "out": str(out), "policy": str(out / "policy"), "start": str(args.init),
                "start_global_step": start_step, "pedestrian_steps_this_run": stats["pedestrian_steps"],
                "train_stats": stats, "wall_s": round(time.time() - t0, 1)}
+    if env.robot_learner is not None:
+        summary |= {"robot_policy": str(out / "robot_policy"), "robot_timesteps": env.robot_learner.num_timesteps,
+                    "robot_updates": env.robot_learner.updates}
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str))
     return summary
 
@@ -385,14 +530,15 @@ def _env_kv(items: Sequence[str]) -> dict[str, Any]:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m navzoo.rl.amp_joint", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="cmd", required=True)
-    tr = sub.add_parser("train", help="train AMP pedestrians among frozen robots (resumable)")
+    tr = sub.add_parser("train", help="train AMP pedestrians among frozen or learning robots (resumable)")
     ev = sub.add_parser("evaluate", help="falls, contacts, path error and robot outcomes of an AMP policy")
     for p in (tr, ev):
         p.add_argument("--env", dest="env_id", default=AmpJointArgs.env_id)
         p.add_argument("--n-envs", type=int, default=AmpJointArgs.n_envs)
         p.add_argument("--n-humans", type=int, default=AmpJointArgs.n_humans)
         p.add_argument("--n-robots", type=int, default=AmpJointArgs.n_robots)
-        p.add_argument("--robot-policy", default=AmpJointArgs.robot_policy)
+        p.add_argument("--robot-policy", default=AmpJointArgs.robot_policy,
+                       help="frozen robots: a benchmark method name or sb3:DIR (an exported robot policy)")
         p.add_argument("--seed", type=int, default=None)
         p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="NavConfig override")
     tr.add_argument("--out", default=AmpJointArgs.out)
@@ -406,6 +552,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     tr.add_argument("--init", default="shipped", help="'shipped' or an AMP checkpoint folder to start from")
     tr.add_argument("--time-limit-s", type=float, default=None)
     tr.add_argument("--ckpt-every", type=int, default=10)
+    rl = tr.add_argument_group("learning robots (--robots learn: SB3 PPO with the transformer, stepped in the same worlds)")
+    rl.add_argument("--robots", choices=["frozen", "learn"], default="frozen",
+                    help="frozen (on --robot-policy) or learning at the same time as the pedestrians")
+    rl.add_argument("--robot-init", default=None, metavar="DIR",
+                    help="exported robot policy whose weights start the robots (e.g. policies/transformer_ppo_crowdnav)")
+    rl.add_argument("--robot-lr", type=float, default=1e-4)
+    rl.add_argument("--robot-n-steps", type=int, default=32, help="robot decisions per row per PPO rollout")
+    rl.add_argument("--robot-epochs", type=int, default=6)
+    rl.add_argument("--robot-batch-size", type=int, default=None)
+    rl.add_argument("--robot-action-repeat", type=int, default=3, help="30 Hz env steps per robot decision")
+    rl.add_argument("--robot-forward-only", action="store_true", help="speed command in [0, 1] (diff-drive robots)")
     ev.add_argument("--policy", default=None, help="exported AMP policy folder (default: the shipped one)")
     ev.add_argument("--steps", type=int, default=900, help="control steps (30 Hz) of every copy")
     ev.add_argument("--json", action="store_true")
@@ -417,7 +574,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                                 robot_policy=a.robot_policy, steps=a.steps, rollout_steps=a.rollout_steps,
                                 epochs=a.epochs, minibatch_size=a.minibatch_size, actor_lr=a.actor_lr,
                                 disc_lr=a.disc_lr, device=a.device, seed=a.seed or 0, init=a.init,
-                                time_limit_s=a.time_limit_s, ckpt_every=a.ckpt_every, env=env)
+                                time_limit_s=a.time_limit_s, ckpt_every=a.ckpt_every, env=env,
+                                robot_learn=None if a.robots == "frozen" else {
+                                    "init_from": a.robot_init, "lr": a.robot_lr, "n_steps": a.robot_n_steps,
+                                    "n_epochs": a.robot_epochs, "batch_size": a.robot_batch_size,
+                                    "action_repeat": a.robot_action_repeat, "forward_only": a.robot_forward_only})
             print(json.dumps(train(args), default=str))
         else:
             res = evaluate(a.policy, a.env_id, a.n_envs, a.n_humans, a.n_robots, a.robot_policy, a.steps,

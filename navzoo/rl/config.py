@@ -61,6 +61,8 @@ class JointConfig:
             ``"amp:DIR"`` (``human_model="amp"``; None = the shipped AMP controller).
         env: NavConfig overrides (``crowd_model``, ``human_model``, ``time_limit``, ...);
             observations are always flat (``flat_obs=True``).
+        robot_init: learning robots among learning AMP pedestrians (:mod:`navzoo.rl.amp_joint`, SB3 PPO with
+            the transformer) start from this exported robot policy folder; None: a fresh network.
     """
 
     env_id: str = "navzoo/CircleCrossing-v0"
@@ -71,6 +73,7 @@ class JointConfig:
     robot_policy: str = "orca"
     human_policy: str | None = None
     env: dict[str, Any] = field(default_factory=dict)
+    robot_init: str | None = None
 
     # ------------------------------------------------------------------ construction / IO
     @classmethod
@@ -204,16 +207,17 @@ class JointConfig:
         if self.humans == LEARN and n_humans == 0:
             raise ValueError("humans: learn needs n_humans >= 1")
         amp = nav.human_model == "amp"
+        if self.robot_init is not None:
+            if not (self.robots == LEARN and self.humans == LEARN and amp):
+                raise ValueError("robot_init starts learning robots among learning AMP pedestrians (robots: learn, "
+                                 "humans: learn, env: {human_model: amp}); RLlib robots start fresh")
+            if not isinstance(self.robot_init, str) or (check_paths and not (Path(self.robot_init) / "config.json").is_file()):
+                raise ValueError(f"robot_init must be an exported robot policy folder (with config.json), "
+                                 f"got {self.robot_init!r}")
         if self.humans == LEARN and amp:
             # AMP pedestrians learn with the AMP learner (PPO + its discriminator's style reward), not RLlib:
-            # navzoo.rl.amp_joint. Their robots are frozen baselines there.
-            if self.robots == LEARN:
-                raise ValueError(
-                    "humans: learn with human_model: amp trains the pedestrians with the AMP learner and its "
-                    "discriminator (navzoo.rl.amp_joint), which drives frozen robots only; robots and AMP "
-                    "pedestrians learning at the same time is not supported yet: set robots: frozen with a "
-                    "baseline robot_policy (docs/scaling.md, 'AMP pedestrians')")
-            if isinstance(self.robot_policy, str) and self.robot_policy.startswith(RLLIB_PREFIX):
+            # navzoo.rl.amp_joint. Learning robots there are SB3 PPO stepped in the same loop.
+            if self.robots == FROZEN and isinstance(self.robot_policy, str) and self.robot_policy.startswith(RLLIB_PREFIX):
                 raise ValueError("humans: learn with human_model: amp drives its robots with a navzoo policy "
                                  f"(a baseline or a shipped learned method), not {self.robot_policy!r}")
         if self.humans == CROWD and amp:

@@ -77,6 +77,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--n-humans", type=int, default=None)
     g.add_argument("--robot-policy", default=None, help="frozen robots: baseline name or rllib:PATH (default orca)")
     g.add_argument("--human-policy", default=None, help="frozen pedestrians: rllib:PATH, or amp / amp:DIR (AMP bodies)")
+    g.add_argument("--robot-init", default=None, metavar="DIR",
+                   help="learning robots among learning AMP pedestrians start from this exported robot policy")
     g.add_argument("--set", dest="env_set", action="append", type=_key_value, default=[], metavar="KEY=VALUE",
                    help="NavConfig override, repeatable (e.g. --set time_limit=10 --set crowd_model=orca)")
     r = parser.add_argument_group("Ray")
@@ -115,7 +117,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def joint_config_from_args(args: argparse.Namespace) -> JointConfig:
     """The JointConfig of ``--config`` with the flags applied on top, validated."""
     cfg = JointConfig.load(args.config) if args.config else JointConfig()
-    for name in ("env_id", "robots", "humans", "n_robots", "n_humans", "robot_policy", "human_policy"):
+    for name in ("env_id", "robots", "humans", "n_robots", "n_humans", "robot_policy", "human_policy", "robot_init"):
         value = getattr(args, name, None)
         if value is not None:
             setattr(cfg, name, value)
@@ -459,9 +461,10 @@ def run_cli(args: argparse.Namespace, error: Callable[[str], None] | None = None
 
 
 def _run_amp_joint(cfg: JointConfig, args: argparse.Namespace, fail: Callable[[str], int]) -> int:
-    """AMP pedestrians learning among frozen robots: the AMP learner with its discriminator
-    (:mod:`navzoo.rl.amp_joint`), in this process. ``--iterations`` x ``--batch-size`` pedestrian steps are
-    trained; ``--envs-per-runner`` env copies; the Ray flags do not apply."""
+    """AMP pedestrians learning among frozen or learning robots: the AMP learner with its discriminator
+    (:mod:`navzoo.rl.amp_joint`), in this process; learning robots are SB3 PPO with the transformer, from
+    ``robot_init`` (``--robot-init``) or fresh, at ``--lr``. ``--iterations`` x ``--batch-size`` pedestrian
+    steps are trained; ``--envs-per-runner`` env copies; the Ray flags do not apply."""
     from navzoo.rl.amp_joint import AmpJointArgs, train
 
     nav = cfg.nav_config()
@@ -470,13 +473,22 @@ def _run_amp_joint(cfg: JointConfig, args: argparse.Namespace, fail: Callable[[s
     env = {k: v for k, v in cfg.env.items() if k not in ("human_model", "dt", "flat_obs")}
     jargs = AmpJointArgs(out=args.out, env_id=cfg.env_id, n_envs=args.envs_per_runner, n_humans=int(nav.n_humans),
                          n_robots=int(nav.n_robots), robot_policy=cfg.robot_policy,
-                         steps=int(args.iterations) * int(args.batch_size), seed=int(args.seed), env=env)
+                         steps=int(args.iterations) * int(args.batch_size), seed=int(args.seed), env=env,
+                         robot_learn=None if cfg.robots == "frozen" else {
+                             "init_from": cfg.robot_init, "lr": float(args.lr),
+                             "forward_only": bool(cfg.robot_init) and _forward_only(cfg.robot_init)})
     try:
         summary = train(jargs)
     except (ValueError, FileNotFoundError) as exc:
         return fail(str(exc))
     print(json.dumps({"done": summary}, default=str), flush=True)
     return 130 if summary.get("interrupted") else 0
+
+
+def _forward_only(policy_dir: str) -> bool:
+    """Whether an exported robot policy commands speeds in [0, 1] only (trained with ``--forward-only``)."""
+    cfg = json.loads((Path(policy_dir) / "config.json").read_text())
+    return float(cfg["action"]["low"][0]) >= 0.0
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -48,7 +48,8 @@ def test_policy_mapping():
     ({"humans": "frozen", "human_policy": "sfm"}, "humans: crowd"),
     ({"humans": "frozen", "human_policy": "rllib:/no/such/run"}, "does not exist"),
     ({"robots": "frozen", "robot_policy": "rllib:/no/such/run"}, "does not exist"),
-    ({"env": {"human_model": "amp"}}, "discriminator"),
+    ({"robot_init": "policies/transformer_ppo_crowdnav"}, "RLlib robots start fresh"),
+    ({"env": {"human_model": "amp"}, "robot_init": "/no/such/policy"}, "exported robot policy folder"),
     ({"env": {"human_model": "amp"}, "humans": "crowd"}, "kinematic pedestrians only"),
     ({"env": {"human_model": "amp"}, "robots": "frozen", "robot_policy": "rllib:x"}, "navzoo policy"),
     ({"env": {"human_model": "amp"}, "humans": "frozen", "human_policy": "rllib:x"}, "'amp' or 'amp:DIR'"),
@@ -56,6 +57,13 @@ def test_policy_mapping():
 def test_bad_configs_are_rejected(data, match):
     with pytest.raises((ValueError, TypeError, FileNotFoundError), match=match):
         JointConfig.from_dict(data).validate()
+
+
+def test_robots_and_amp_pedestrians_may_learn_together():
+    cfg = JointConfig(env_id="navzoo/Lobby-v0", n_humans=2, env={"human_model": "amp"},
+                      robot_init="policies/transformer_ppo_crowdnav").validate()
+    assert cfg.learning_policies == ["robot", "human"]
+    assert JointConfig.from_dict(cfg.to_dict()).robot_init == "policies/transformer_ppo_crowdnav"
 
 
 def test_amp_pedestrians_can_be_frozen_on_the_shipped_controller():

@@ -799,6 +799,11 @@ class AmpLearner:
             "learner": learner_arrays,
             "env": env_arrays,
         }
+        companion = getattr(self.env, "companion_state", None)
+        if callable(companion):  # e.g. robots learning in the same worlds (navzoo.rl.amp_joint)
+            state = companion()
+            if state is not None:
+                tensors["companion"] = state
         tensors = _to_cpu(tensors)
         meta = {
             "config": self.cfg.to_dict(),
@@ -894,6 +899,12 @@ class AmpLearner:
         self.disc_resets = [int(i) for i in meta.get("disc_resets", [])]
         if reset_disc:
             self.reset_discriminator()
+        load_companion = getattr(self.env, "load_companion_state", None)
+        if callable(load_companion) and not any_num_envs:
+            try:
+                load_companion(tensors.get("companion"))
+            except ValueError as e:
+                raise CheckpointError(f"{meta_path.parent / ckpt.STATE_FILE}: {e}") from e
         self._rollout = None
         env_json = meta.get("env_state")
         if (
