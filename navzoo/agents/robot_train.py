@@ -145,6 +145,7 @@ class _CopyFactory:
     overrides: dict[str, Any]
     expected_obs: spaces.Space
     expected_act: spaces.Space
+    crowd_policy: str | None = None
 
     def __call__(self) -> Any:
         import supersuit as ss
@@ -152,7 +153,14 @@ class _CopyFactory:
         from navzoo.envs.registry import make
         from navzoo.envs.wrappers import PadFinishedAgents
 
-        env = make(self.env_id, **self.overrides)
+        if self.crowd_policy is None:
+            env = make(self.env_id, **self.overrides)
+        else:  # pedestrians trained with RLlib, frozen, act for themselves (as the benchmark's rllib: crowds)
+            from navzoo.envs.wrappers import FrozenAgents
+            from navzoo.rl.joint import FlatObsPolicy, RLModulePolicy
+
+            crowd = FlatObsPolicy(RLModulePolicy(self.crowd_policy[len(CROWD_POLICY_PREFIX):], "human"))
+            env = FrozenAgents(make(self.env_id, raw=True, **self.overrides), lambda a: a.startswith("human_"), crowd)
         for a in env.possible_agents:
             if env.observation_space(a) != self.expected_obs or env.action_space(a) != self.expected_act:
                 raise ValueError(f"{self.env_id}: agent {a} has observation space {env.observation_space(a)} and "
@@ -163,8 +171,24 @@ class _CopyFactory:
         return ss.pettingzoo_env_to_vec_env_v1(_SeededCopy(env, self.env_id, self.copy_index, self.seed_shift))
 
 
+CROWD_POLICY_PREFIX = "rllib:"
+
+
+def check_crowd_policy(spec: str) -> None:
+    """``ValueError`` unless ``spec`` is ``"rllib:PATH"`` with an RLlib ``human`` module at PATH."""
+    if not isinstance(spec, str) or not spec.startswith(CROWD_POLICY_PREFIX):
+        raise ValueError(f"--crowd-policy takes rllib:PATH (pedestrians trained with navzoo train joint), got {spec!r}")
+    from navzoo.rl.config import resolve_module_dir
+
+    try:
+        resolve_module_dir(spec[len(CROWD_POLICY_PREFIX):], "human")
+    except FileNotFoundError as exc:
+        raise ValueError(f"--crowd-policy {spec}: {exc}") from exc
+
+
 def make_mixed_vec_env(env_ids: Sequence[str] = TRAIN_SCENES, n_envs: int = 1, seed: int | None = 0,
-                       num_cpus: int = 0, robots_per_env: int = 1, **overrides: Any) -> VecEnv:
+                       num_cpus: int = 0, robots_per_env: int = 1, crowd_policy: str | None = None,
+                       **overrides: Any) -> VecEnv:
     """An SB3 ``VecEnv`` mixing several navzoo scenes with the same spaces (flat observations).
 
     Copy ``i`` (``n_envs`` per scene, interleaved: scene ``i % len(env_ids)``) is seeded ``seed + i``
@@ -177,6 +201,8 @@ def make_mixed_vec_env(env_ids: Sequence[str] = TRAIN_SCENES, n_envs: int = 1, s
         seed: seed of the first reset (None: unseeded).
         num_cpus: worker processes (SuperSuit ``num_cpus``; 0 or 1: all in this process).
         robots_per_env: robots per copy (``n_robots``).
+        crowd_policy: ``"rllib:PATH"``: the pedestrians are a crowd trained with RLlib (``navzoo train
+            joint``), frozen, instead of the scene's crowd model; None: the crowd model.
         **overrides: NavConfig fields for every scene (``k_neighbors``, ``n_humans``, ...).
 
     Raises:
@@ -209,7 +235,9 @@ def make_mixed_vec_env(env_ids: Sequence[str] = TRAIN_SCENES, n_envs: int = 1, s
     def shift(i: int) -> int:  # what SuperSuit adds to the seed on its way to copy i
         return i if workers <= 1 else i // per_worker + i % per_worker
 
-    fns = [_CopyFactory(env_ids[i % len(env_ids)], i, shift(i), dict(overrides), obs_space, act_space)
+    if crowd_policy is not None:
+        check_crowd_policy(crowd_policy)
+    fns = [_CopyFactory(env_ids[i % len(env_ids)], i, shift(i), dict(overrides), obs_space, act_space, crowd_policy)
            for i in range(n_copies)]
     if workers <= 1:
         vec = ConcatVecEnv(fns)
@@ -507,7 +535,8 @@ class TrainArgs:
     save_every: int = 10_000
     keep: int = 3
     time_limit_s: float | None = None
-    extra: dict[str, Any] = field(default_factory=dict)  # NavConfig overrides (Python API only)
+    extra: dict[str, Any] = field(default_factory=dict)  # NavConfig overrides (--kinematics, ..., --set)
+    crowd_policy: str | None = None  # "rllib:PATH": a frozen learned crowd instead of the scene's crowd model
 
     def __post_init__(self) -> None:
         for name in ("n_envs", "robots_per_env", "total_steps", "n_epochs", "features_dim", "heads", "blocks",
@@ -547,6 +576,8 @@ class TrainArgs:
             raise ValueError(f"--time-limit-s must be a number > 0, got {self.time_limit_s!r}")
         from navzoo.envs.registry import SCENARIOS
 
+        if self.crowd_policy is not None:
+            check_crowd_policy(self.crowd_policy)
         unknown = [s for s in self.scenes if s not in SCENARIOS]
         if unknown or not self.scenes:
             raise ValueError(f"unknown scene(s) {unknown or '(none given)'}; use scene names or ids such as "
@@ -715,7 +746,7 @@ def train(args: TrainArgs) -> dict[str, Any]:
         print(json.dumps({"already_done": done, "total_steps": args.total_steps}), flush=True)
         summary["checkpoint"] = str(found[0]) if found else None
     vec = make_mixed_vec_env(args.scenes, args.n_envs, seed=args.seed + done, num_cpus=args.num_cpus,
-                             robots_per_env=args.robots_per_env, **args.extra)
+                             robots_per_env=args.robots_per_env, crowd_policy=args.crowd_policy, **args.extra)
     if args.forward_only:  # SB3 clips the policy's actions to this box (speed >= 0) before the env sees them
         vec.action_space = FORWARD_ONLY_ACTIONS
     with warnings.catch_warnings():  # SuperSuit's vector env has no get_attr: SB3 warns, then uses None
@@ -760,7 +791,7 @@ def train(args: TrainArgs) -> dict[str, Any]:
         meta = {"scenes": list(args.scenes), "n_steps": args.n_steps, "n_epochs": args.n_epochs,
                 "batch_size": args.batch_size, "lr": args.lr, "gamma": args.gamma, "seed": args.seed,
                 "env_overrides": args.extra, "forward_only": args.forward_only, "target_kl": args.target_kl,
-                "init_from": args.init_from,
+                "init_from": args.init_from, **({"crowd_policy": args.crowd_policy} if args.crowd_policy else {}),
                 "trained_with": "navzoo train robot"}
         summary["policy"] = str(export_policy(model, out / "policy", meta).parent)
         summary["timesteps"] = int(model.num_timesteps)
@@ -814,6 +845,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         "envs without it")
     p.add_argument("--scan-range", type=float, default=None, metavar="M",
                    help="range of that scan (NavConfig.scan_range, default 4 m)")
+    p.add_argument("--crowd-policy", default=None, metavar="rllib:PATH",
+                   help="the pedestrians are a crowd trained with RLlib (navzoo train joint --humans learn), frozen, "
+                        "instead of the scene's crowd model (needs navzoo[ray])")
+    p.add_argument("--set", dest="env_set", action="append", default=[], metavar="KEY=VALUE",
+                   help="further NavConfig override for every scene (JSON value), e.g. --set human_at_goal=new_goal")
     p.add_argument("--total-steps", type=int, default=d.total_steps, help="total robot steps to reach (with resumed)")
     p.add_argument("--n-steps", type=int, default=d.n_steps, help="rollout length per vector entry (paper: 32)")
     p.add_argument("--n-epochs", type=int, default=d.n_epochs, help="PPO epochs per rollout (paper: 6)")
@@ -849,10 +885,23 @@ def _env_overrides(args: argparse.Namespace) -> dict[str, Any]:
     for opt in ("robot_subgoal", "robot_progress", "wall_proximity", "scan_rays", "scan_range"):
         if getattr(args, opt, None) is not None:
             extra[opt] = getattr(args, opt)
+    for item in getattr(args, "env_set", None) or []:
+        if "=" not in item:
+            raise ValueError(f"--set takes KEY=VALUE, got {item!r}")
+        key, text = item.split("=", 1)
+        try:
+            value = json.loads(text)
+        except json.JSONDecodeError:
+            value = text
+        if key in ("flat_obs", "n_robots", "scene"):
+            raise ValueError(f"--set {key}: navzoo train robot sets it (use --robots-per-env / --scenes)")
+        if key == "robot" or key in extra:
+            raise ValueError(f"--set {key}: use its own option (--kinematics, --robot-subgoal, ...)")
+        extra[key] = value
     if extra:
         from navzoo.envs.config import NavConfig
 
-        NavConfig(**{k: v for k, v in extra.items() if k != "robot"})  # a bad value fails here, named
+        NavConfig.from_dict({k: v for k, v in extra.items() if k != "robot"})  # a bad key or value fails here, named
     return extra
 
 
@@ -872,7 +921,7 @@ def run_cli(args: argparse.Namespace, error: Callable[[str], Any] | None = None)
             features_dim=args.features_dim, heads=args.heads, blocks=args.blocks,
             net_arch=tuple(args.net_arch), device=args.device, seed=args.seed, threads=args.threads,
             save_every=args.save_every, keep=args.keep, time_limit_s=args.time_limit_s,
-            extra=_env_overrides(args))
+            extra=_env_overrides(args), crowd_policy=getattr(args, "crowd_policy", None))
         check_resume(targs)
     except ValueError as exc:
         if error is not None:

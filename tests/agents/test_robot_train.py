@@ -235,6 +235,29 @@ def test_bad_options_are_rejected(tmp_path, argv, message):
     assert not (tmp_path / "checkpoints").exists()
 
 
+@pytest.mark.parametrize("argv, message", [
+    (["--crowd-policy", "orca"], "--crowd-policy takes rllib:PATH"),
+    (["--crowd-policy", "rllib:/no/such/run"], "does not exist"),
+    (["--set", "n_robots=2"], "navzoo train robot sets it"),
+    (["--set", "crowd_modle=sfm"], r"unknown NavConfig key\(s\) \['crowd_modle'\]"),
+    (["--set", "human_at_goal=fly"], "human_at_goal"),
+    (["--set", "oops"], "KEY=VALUE"),
+    (["--robot-subgoal", "3", "--set", "robot_subgoal=2"], "use its own option"),
+])
+def test_bad_crowd_and_env_options_are_rejected(tmp_path, argv, message):
+    with pytest.raises(ValueError, match=message):
+        run_cli(_args("--out", str(tmp_path), *argv))
+    assert not (tmp_path / "checkpoints").exists()
+
+
+def test_set_overrides_reach_every_copy(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert run_cli(_args("--out", str(out), "--scenes", "navzoo/CircleCrossing-v0", "--set", "n_humans=2",
+                         "--set", "human_at_goal=new_goal", "--total-steps", "32", *TINY)) == 0
+    cfg = json.loads((out / "policy" / "config.json").read_text())
+    assert cfg["training"]["env_overrides"] == {"n_humans": 2, "human_at_goal": "new_goal"}
+
+
 def test_cuda_without_cuda_is_rejected(tmp_path):
     if torch.cuda.is_available():
         pytest.skip("CUDA is available here")

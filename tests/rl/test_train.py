@@ -131,6 +131,21 @@ def test_tiny_run_updates_both_policies_then_resumes(tmp_path, local_ray):
 
         validate_spec(BenchmarkSpec(scenes=("circle_crossing",), methods=("dwa",), crowds=(f"rllib:{tmp_path}/none",)))
 
+    # A robot trained (SB3, navzoo train robot) against the learned crowd, frozen in every env copy, in worker
+    # processes; the exported policy records its crowd.
+    from navzoo.agents.robot_train import add_arguments as robot_arguments
+    from navzoo.agents.robot_train import run_cli as train_robot
+
+    rargs = robot_arguments(argparse.ArgumentParser()).parse_args([
+        "--out", str(tmp_path / "robot"), "--scenes", "navzoo/CircleCrossing-v0", "--crowd-policy", f"rllib:{out}",
+        "--set", "n_humans=2", "--set", "humans_see_robots=true", "--n-envs", "2", "--num-cpus", "2",
+        "--total-steps", "64", "--features-dim", "16", "--heads", "2", "--blocks", "1", "--net-arch", "16",
+        "--threads", "1", "--n-epochs", "1"])
+    assert train_robot(rargs) == 0
+    rcfg = json.loads((tmp_path / "robot" / "policy" / "config.json").read_text())
+    assert rcfg["training"]["crowd_policy"] == f"rllib:{out}"
+    assert rcfg["training"]["env_overrides"] == {"n_humans": 2, "humans_see_robots": True}
+
 
 def test_a_learner_actor_updates_both_policies(tmp_path):
     # --num-learners 1: the PPO update runs in a learner actor (a Ray process), not in the driver.
