@@ -108,3 +108,31 @@ def test_report_cli_json(run_dir, tmp_path, capsys):
     cell = data["cells"][0]
     assert {"method", "scene", "group", "crowd", "level", "n_episodes", "ci95"} <= set(cell)
     assert all(name in cell for name in REQUIRED)
+
+
+def test_learned_crowd_names_with_slashes_get_safe_plot_names(run_dir, tmp_path):
+    """``rllib:PATH`` crowds hold slashes; their plots must still land in plots/ (it crashed before)."""
+    import shutil
+
+    from navzoo.benchmark.runner import artifact_path
+
+    run = tmp_path / "run"
+    shutil.copytree(run_dir, run)
+    shutil.rmtree(run / "report", ignore_errors=True)
+    crowd = "rllib:runs/joint_study/with_robots_seed0"
+    recs = [json.loads(line) for line in (run / "episodes.jsonl").read_text().splitlines()]
+    for r in recs:
+        renamed = {**r, "crowd": crowd}
+        for sub, suffix in (("trajectories", ".npz"), ("videos", ".mp4"), ("videos", ".png")):
+            old = run / sub / artifact_path(r, suffix)
+            if old.is_file():
+                new = run / sub / artifact_path(renamed, suffix)
+                new.parent.mkdir(parents=True, exist_ok=True)
+                old.rename(new)
+        r["crowd"] = crowd
+    (run / "episodes.jsonl").write_text("".join(json.dumps(r) + "\n" for r in recs))
+    build_report(run)
+    plots = {p.name for p in (run / "report" / "plots").iterdir()}
+    assert "density_sweep_rllib_runs_joint_study_with_robots_seed0.png" in plots
+    assert any(n.startswith("traj_") and "rllib_runs_joint_study_with_robots_seed0" in n for n in plots)
+    assert "rllib:runs/joint_study/with_robots_seed0" in (run / "report" / "report.md").read_text()

@@ -415,7 +415,7 @@ def _plot_overlay(scene: str, trajs: Sequence[tuple[str, Mapping[str, Any]]], co
 
 def _trajectory_overlays(run: Path, records: Sequence[Mapping[str, Any]], methods: Sequence[str],
                          plots: Path) -> list[dict[str, str]]:
-    from navzoo.benchmark.runner import artifact_path
+    from navzoo.benchmark.runner import _safe_name, artifact_path
 
     episodes: dict[tuple, list[Mapping[str, Any]]] = defaultdict(list)
     for r in records:
@@ -435,7 +435,7 @@ def _trajectory_overlays(run: Path, records: Sequence[Mapping[str, Any]], method
             with np.load(run / "trajectories" / artifact_path(r, ".npz")) as z:
                 trajs.append((r["method"], {k: z[k] for k in ("robot_pos", "human_pos", "start", "goal")}
                               | {"event": str(z["event"]), "method": r["method"]}))
-        name = f"traj_{scene}_{crowd}_{level}_ep{ep:04d}.png"
+        name = _safe_name(f"traj_{scene}_{crowd}_{level}_ep{ep:04d}") + ".png"  # rllib:PATH crowds hold slashes
         title = f"{scene}, {crowd}, {level_text(level)}, episode {ep} (seed {recs[0]['seed']})"
         _plot_overlay(scene, trajs, colors, title, plots / name)
         out.append({"file": f"plots/{name}", "title": title})
@@ -475,7 +475,7 @@ def build_report(run_dir: str | Path, out: str | Path | None = None, plots: bool
         FileNotFoundError: no ``episodes.jsonl`` in ``run_dir``.
         ValueError: it holds no finished episode.
     """
-    from navzoo.benchmark.runner import EPISODES_FILE, RUN_FILE, artifact_path, load_episodes, load_errors
+    from navzoo.benchmark.runner import EPISODES_FILE, RUN_FILE, _safe_name, artifact_path, load_episodes, load_errors
 
     run = Path(run_dir)
     if not (run / EPISODES_FILE).is_file():
@@ -522,7 +522,7 @@ def build_report(run_dir: str | Path, out: str | Path | None = None, plots: bool
         _plot_group_bars(groups_pooled, methods, pdir / "group_bars.png")
         figures.append({"file": "plots/group_bars.png", "title": "Success and collision per scene group"})
         for crowd in sorted({r["crowd"] for r in overall}):
-            name = f"density_sweep_{crowd}.png"
+            name = _safe_name(f"density_sweep_{crowd}") + ".png"
             _plot_density_sweep([r for r in overall if r["crowd"] == crowd], methods, crowd, pdir / name)
             figures.append({"file": f"plots/{name}", "title": f"Crowd level sweep ({crowd} crowd)"})
         overlays = _trajectory_overlays(run, records, methods, pdir)
