@@ -9,7 +9,7 @@
 #   here (2 cores, a smoke run): ENVS=2 CPUS=0 BATCH=64 TRAIN_S=30 DEVICE=cpu OUT=/tmp/rvc bash scripts/device_robot_vs_learned_crowd.sh
 #
 # Env: TRAIN_S (520 s per run, both at once), ENVS (16 copies per run), CPUS (7 worker processes per run),
-# BATCH (512), DEVICE (cuda), CROWD (the learned crowd's run folder), RUNS (/tmp/robot_vs_crowd).
+# BATCH (512), DEVICE (cuda), SEED (0), CROWD (the learned crowd's run folder), RUNS (/tmp/robot_vs_crowd).
 # Writes $OUT/robot_vs_crowd.tgz (each run's policy/ and metrics.jsonl), $OUT/<run>_step_*.pt/.json (its last
 # checkpoint) and $OUT/<run>.log.
 set -u
@@ -27,7 +27,7 @@ CROWD=${CROWD:-runs/joint_study/joint_study/with_robots_seed0}; RUNS=${RUNS:-/tm
 COMMON="--scenes navzoo/CircleCrossing-v0 --kinematics diff_drive --forward-only
   --init-from policies/transformer_ppo_crowdnav --set human_at_goal=new_goal --set humans_see_robots=true
   --set n_humans=4 --n-envs $ENVS --num-cpus $CPUS --lr 5e-5 --target-kl 0.03 --batch-size $BATCH --threads 1
-  --device $DEVICE --total-steps 20000000 --time-limit-s $TRAIN_S --save-every 50000 --keep 1 --seed 0"
+  --device $DEVICE --total-steps 20000000 --time-limit-s $TRAIN_S --save-every 50000 --keep 1 --seed ${SEED:-0}"
 mkdir -p "$RUNS"
 $PY -m navzoo.agents.robot_train $COMMON --crowd-policy "rllib:$CROWD" --out "$RUNS/vs_learned" \
   2>&1 | grep -v '^b3' > "$OUT/vs_learned.log" &
