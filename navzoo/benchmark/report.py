@@ -475,7 +475,14 @@ def build_report(run_dir: str | Path, out: str | Path | None = None, plots: bool
         FileNotFoundError: no ``episodes.jsonl`` in ``run_dir``.
         ValueError: it holds no finished episode.
     """
-    from navzoo.benchmark.runner import EPISODES_FILE, RUN_FILE, _safe_name, artifact_path, load_episodes, load_errors
+    from navzoo.benchmark.runner import (
+        EPISODES_FILE,
+        RUN_FILE,
+        _safe_name,
+        artifact_path,
+        load_episodes,
+        load_errors,
+    )
 
     run = Path(run_dir)
     if not (run / EPISODES_FILE).is_file():
