@@ -18,6 +18,10 @@ preferred velocities that the model is given:
   direction, at ``back_speed`` for ``back_time`` seconds, then waits in place for ``wait_time``
   seconds, then goes on. Priority: whoever has yielded more often goes first (so nobody yields for
   ever), ties broken by a fixed per-person order.
+* with ``hold_max`` > 0 the one who yields also *holds* its wait until the person it yielded to
+  (the nearest winner of its conflicts) has passed it or moved away, for at most ``hold_max`` more
+  seconds: otherwise a head-on pair in a door can trade yields without either getting through. Its
+  wait then ends early, and :meth:`TurnTaking.update` reports that as an event (for replanning).
 
 Everything is deterministic and vectorised over people. The same rules serve kinematic pedestrians
 (every control step) and the target trajectories of AMP pedestrians (rolled out ahead in time with
@@ -49,6 +53,9 @@ class YieldParams:
         back_speed: speed of the step back (m/s).
         back_time: duration of the step back (s).
         wait_time: time spent waiting in place after the step back (s).
+        hold_max: longest extra wait (s) while the person one yielded to has not passed yet; 0: off.
+        hold_pass: the other has passed once it is this far (m) beyond the one waiting, along its
+            own preferred direction.
     """
 
     patience: float = 2.0
@@ -59,13 +66,15 @@ class YieldParams:
     back_speed: float = 0.4
     back_time: float = 1.2
     wait_time: float = 1.5
+    hold_max: float = 0.0
+    hold_pass: float = 0.3
 
     def __post_init__(self) -> None:
         for name in ("patience", "stuck_speed", "min_pref_speed", "reach", "back_time"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"YieldParams.{name} must be a finite number > 0, got {v!r}")
-        for name in ("back_speed", "wait_time"):
+        for name in ("back_speed", "wait_time", "hold_max", "hold_pass"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"YieldParams.{name} must be a finite number >= 0, got {v!r}")
@@ -88,12 +97,14 @@ class TurnTaking:
         self.back_until = np.full(self.n, -np.inf)
         self.wait_until = np.full(self.n, -np.inf)
         self.back_dir = np.zeros((self.n, 2))
+        self.partner = np.full(self.n, -1)  # whom a holding person yielded to (-1: none)
+        self.hold_until = np.full(self.n, -np.inf)
         # Fixed tie-break order: a permutation that does not favour low indices.
         self._order = (np.arange(self.n) * 7919) % max(self.n, 1) if self.n else np.zeros(0, dtype=int)
 
     def yielding(self, t: float) -> np.ndarray:
-        """(n,) bool: who is stepping back or waiting at time ``t``."""
-        return t < self.wait_until
+        """(n,) bool: who is stepping back, waiting or holding at time ``t``."""
+        return t < np.maximum(self.wait_until, self.hold_until)
 
     def update(self, t: float, dt: float, pos: np.ndarray, vel: np.ndarray, pref: np.ndarray,
                active: np.ndarray | None = None) -> np.ndarray:
@@ -107,12 +118,13 @@ class TurnTaking:
             active: (n,) bool, who takes part (e.g. not fallen); default everybody.
 
         Returns:
-            (n,) bool: who started yielding now.
+            (n,) bool: who started yielding now, or stopped holding early (the other passed).
         """
         p = self.params
         active = np.ones(self.n, dtype=bool) if active is None else np.asarray(active, dtype=bool)
         pref_speed = np.linalg.norm(pref, axis=1)
         u_all = pref / np.maximum(pref_speed, 1e-9)[:, None]
+        released = self._release_holds(t, pos, u_all, active)
         progress = (vel * u_all).sum(axis=1)  # speed toward where one wants to go (jostling sideways is none)
         busy = self.yielding(t)
         stuck_now = active & ~busy & (progress < p.stuck_speed) & (pref_speed > p.min_pref_speed)
@@ -120,7 +132,7 @@ class TurnTaking:
         stuck = self.stuck_time >= p.patience
         started = np.zeros(self.n, dtype=bool)
         if stuck.sum() < 2:
-            return started
+            return started | released
         idx = np.flatnonzero(stuck)
         d = np.linalg.norm(pos[idx, None, :] - pos[None, idx, :], axis=2)
         u = u_all[idx]
@@ -136,12 +148,39 @@ class TurnTaking:
             self.wait_until[who] = t + p.back_time + p.wait_time
             self.back_dir[who] = -u[loses]
             self.stuck_time[who] = 0.0
-        return started
+            if p.hold_max > 0:
+                # the nearest person each loser conflicts with and yields to
+                beaten = conflict & (prio[None, :] > prio[:, None])  # the ones it loses to
+                dist = np.where(beaten, d, np.inf)[loses]
+                self.partner[who] = idx[np.argmin(dist, axis=1)]
+                self.hold_until[who] = self.wait_until[who] + p.hold_max
+        return started | released
+
+    def _release_holds(self, t: float, pos: np.ndarray, u_all: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """End the holds whose other person has passed, moved away, stopped taking part, or whose
+        ``hold_max`` ran out; returns who was released before the end of its hold."""
+        released = np.zeros(self.n, dtype=bool)
+        holders = np.flatnonzero(self.partner >= 0)
+        if not holders.size:
+            return released
+        j = self.partner[holders]
+        gap = pos[j] - pos[holders]
+        passed = (gap * u_all[j]).sum(axis=1) > self.params.hold_pass
+        away = np.linalg.norm(gap, axis=1) > 1.5 * self.params.reach
+        over = t >= self.hold_until[holders]
+        end = passed | away | ~active[j] | ~active[holders] | over
+        done = holders[end]
+        early = done[t < self.hold_until[done]]
+        # a hold ends, the step back and the plain wait keep their times
+        self.hold_until[done] = -np.inf
+        self.partner[done] = -1
+        released[early] = t >= self.wait_until[early]  # only a wait that was being extended changes anything
+        return released
 
     def apply(self, t: float | np.ndarray, pref: np.ndarray) -> np.ndarray:
         """Preferred velocities (n, 2) at time ``t`` (scalar or per person) with the yields applied:
         stepping back, then zero while waiting, else ``pref`` unchanged."""
         t = np.broadcast_to(np.asarray(t, dtype=float), (self.n,))
         back = (t < self.back_until)[:, None]
-        wait = (t < self.wait_until)[:, None]
+        wait = (t < np.maximum(self.wait_until, self.hold_until))[:, None]
         return np.where(back, self.params.back_speed * self.back_dir, np.where(wait, 0.0, pref))

@@ -82,6 +82,12 @@ WAYPOINT_LOOKAHEAD = 4
 # success 0.33 -> 0.40 over two seeds; 1, 3 and 4 rad/s no gain). Diffusion-planned targets are left
 # as they were measured (not ablated yet).
 TARGET_TURN_RATE = 2.0
+# A physics pedestrian that yields in a bottleneck can hold its wait until the person it yielded to has
+# passed it, for at most this many more seconds (navzoo.agents.yielding, YieldParams.hold_max; 0 = off).
+# Off: 6 s measured worse on the following protocol (success 0.406 -> 0.353 at seed 0, 0.395 -> 0.338 at
+# seed 1, more timeouts in the open scenes, the home and doorway no better; scripts/device_yield_hold_ablation.sh,
+# docs/pedestrians.md).
+YIELD_HOLD_S = 0.0
 
 
 def limit_turn(v_prev: np.ndarray, v_new: np.ndarray, max_angle: float, moving: float = 0.1,

@@ -17,10 +17,11 @@ from navzoo import sim
 from navzoo.agents.humanoid import HumanoidBodies
 from navzoo.agents.policy import preferred_velocity
 from navzoo.agents.robot import RobotBodies, command_velocity, wrap_angle
-from navzoo.agents.yielding import TurnTaking
+from navzoo.agents.yielding import TurnTaking, YieldParams
 from navzoo.envs import observations as obs_terms
 from navzoo.envs.amp_humans import PLAN_MARGIN as AMP_PLAN_MARGIN
 from navzoo.envs.amp_humans import WAYPOINT_LOOKAHEAD, AmpHumans, advance_waypoint
+from navzoo.envs.amp_humans import YIELD_HOLD_S as AMP_YIELD_HOLD_S
 from navzoo.envs.config import NavConfig
 from navzoo.envs.rewards import TERMS, RewardParams, navigation_reward
 from navzoo.envs.subgoal import RobotGuide
@@ -352,7 +353,9 @@ class NavEnv(ParallelEnv):
         self.events: dict[str, str] = {}
         self.goals_reached = np.zeros(N, dtype=int)
         self.arrived = np.zeros(N, dtype=bool)  # pedestrians done for good (human_at_goal="stop")
-        self.turn_taking = TurnTaking(H) if cfg.human_yielding and rp is None else None
+        # physics pedestrians may hold a yield until the other has passed (amp_humans.YIELD_HOLD_S; 0 = off)
+        hold = YieldParams(hold_max=AMP_YIELD_HOLD_S) if cfg.human_model == "amp" else None
+        self.turn_taking = TurnTaking(H, hold) if cfg.human_yielding and rp is None else None
 
         self.robots.reset(self.pos[:R], self.yaw[:R])
         self.robot_subgoals = self.goal[:R].copy()  # what the robots' goal features point at

@@ -13,13 +13,14 @@ from navzoo.agents.yielding import TurnTaking, YieldParams
 WALL = np.array([[[0.0, -5.0], [0.0, -0.4]], [[0.0, 0.4], [0.0, 5.0]]])
 
 
-def _door_crossing(yielding: bool, seconds: float = 40.0, dt: float = 0.1) -> tuple[np.ndarray, float | None]:
+def _door_crossing(yielding: bool, seconds: float = 40.0, dt: float = 0.1,
+                   yield_params: YieldParams | None = None) -> tuple[np.ndarray, float | None]:
     """Two people meeting head-on in the door; returns final positions and when both had passed."""
     pos = np.array([[-1.0, 0.02], [1.0, -0.02]])
     vel = np.zeros((2, 2))
     goal = np.array([[4.0, 0.0], [-4.0, 0.0]])
     v_pref = np.array([1.2, 1.2])
-    tt = TurnTaking(2) if yielding else None
+    tt = TurnTaking(2, yield_params) if yielding else None
     params = SocialForceParams()
     t = 0.0
     for _ in range(int(seconds / dt)):
@@ -96,3 +97,61 @@ def test_inactive_people_never_yield_and_params_are_validated():
         YieldParams(patience=0.0)
     with pytest.raises(ValueError, match="same_way_deg"):
         YieldParams(same_way_deg=270.0)
+
+
+def _first_yield(tt: TurnTaking, pos: np.ndarray, pref: np.ndarray) -> tuple[float, int]:
+    t, started = 0.0, np.zeros(2, dtype=bool)
+    while not started.any():
+        t += 0.1
+        started = tt.update(t, 0.1, pos, np.zeros((2, 2)), pref)
+    return t, int(np.flatnonzero(started)[0])
+
+
+def test_a_yielder_holds_until_the_other_has_passed():
+    p = YieldParams(patience=0.5, back_time=1.0, wait_time=1.0, hold_max=5.0, hold_pass=0.3)
+    tt = TurnTaking(2, p)
+    pos = np.array([[-0.4, 0.0], [0.4, 0.0]])
+    pref = np.array([[1.0, 0.0], [-1.0, 0.0]])
+    t, loser = _first_yield(tt, pos, pref)
+    winner = 1 - loser
+    assert tt.partner[loser] == winner
+    # past the plain wait, the other has not passed yet: the yielder still waits (and its rollouts wait too)
+    for _ in range(25):
+        t += 0.1
+        assert not tt.update(t, 0.1, pos, np.zeros((2, 2)), pref)[loser]
+    np.testing.assert_allclose(tt.apply(t, pref)[loser], 0.0)
+    np.testing.assert_allclose(tt.apply(t + 2.0, pref)[loser], 0.0)  # the hold shapes the rollout ahead
+    assert tt.yielding(t)[loser]
+    # the other walks past the yielder: the hold ends now, reported as an event
+    moved = pos.copy()
+    moved[winner] = pos[loser] + 0.5 * pref[winner]
+    t += 0.1
+    released = tt.update(t, 0.1, moved, np.zeros((2, 2)), pref)
+    assert released[loser] and tt.partner[loser] == -1
+    np.testing.assert_allclose(tt.apply(t, pref)[loser], pref[loser])
+
+
+def test_a_hold_ends_after_hold_max_and_is_off_by_default():
+    p = YieldParams(patience=0.5, back_time=1.0, wait_time=1.0, hold_max=1.0)
+    tt = TurnTaking(2, p)
+    pos = np.array([[-0.4, 0.0], [0.4, 0.0]])
+    pref = np.array([[1.0, 0.0], [-1.0, 0.0]])
+    t0, loser = _first_yield(tt, pos, pref)
+    np.testing.assert_allclose(tt.apply(t0 + 2.5, pref)[loser], 0.0)  # held past the plain wait
+    np.testing.assert_allclose(tt.apply(t0 + 3.1, pref)[loser], pref[loser])  # but not past hold_max
+    t = t0
+    while t < t0 + 3.2:
+        t += 0.1
+        tt.update(t, 0.1, pos, np.zeros((2, 2)), pref, active=np.array([loser == 0, loser == 1]))
+    assert tt.partner[loser] == -1
+    plain = TurnTaking(2, YieldParams(patience=0.5, back_time=1.0, wait_time=1.0))
+    t0, loser = _first_yield(plain, pos, pref)
+    assert plain.partner[loser] == -1
+    np.testing.assert_allclose(plain.apply(t0 + 2.1, pref)[loser], pref[loser])
+    with pytest.raises(ValueError, match="hold_max"):
+        YieldParams(hold_max=-1.0)
+
+
+def test_holding_gets_a_head_on_pair_through_the_door():
+    pos, passed = _door_crossing(yielding=True, yield_params=YieldParams(hold_max=6.0))
+    assert passed is not None and passed < 20.0, (pos, passed)
