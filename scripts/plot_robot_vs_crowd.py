@@ -6,7 +6,7 @@ collision, smallest distance and navigation time per robot and crowd, with 95 % 
 per-episode records (gzipped) and a summary JSON to docs/results/robot_vs_crowd/ and the plot to
 docs/img/robot_vs_crowd.png.
 
-    python scripts/plot_robot_vs_crowd.py runs/rvc_bench
+    python scripts/plot_robot_vs_crowd.py runs/rvc_bench runs/r2bench   # round 1 and round 2 benchmark folders
 """
 
 from __future__ import annotations
@@ -24,15 +24,17 @@ CROWDS = [  # (benchmark crowd name, label)
     ("rllib:runs/joint_study/joint_study/with_robots_seed0", "learned with robots, seed 0 (fine-tuned against)"),
     ("rllib:runs/joint_study/joint_study/with_robots_seed1", "learned with robots, seed 1 (unseen)"),
     ("rllib:runs/joint_study/joint_study/no_robots_seed0", "learned without robots, seed 0 (unseen)"),
+    ("rllib:runs/round2/vs_finetuned_robot_seed0", "learned among the robot fine-tuned vs learned seed 0 (round 2)"),
 ]
 ROBOTS = [("shipped", "shipped CrowdNav policy"), ("vs_orca", "fine-tuned vs ORCA crowd"),
           ("vs_learned", "fine-tuned vs learned crowd")]
 
 
-def load(root: Path) -> dict[str, list[dict]]:
+def load(roots: list[Path]) -> dict[str, list[dict]]:
     """Episode records by robot condition (training seeds pooled)."""
     out: dict[str, list[dict]] = defaultdict(list)
-    for run in sorted(p for p in root.iterdir() if (p / "episodes.jsonl").is_file()):
+    runs = [p for root in roots for p in sorted(root.iterdir()) if (p / "episodes.jsonl").is_file()]
+    for run in runs:
         cond = run.name.split("_seed")[0]
         for line in (run / "episodes.jsonl").read_text().splitlines():
             rec = json.loads(line)
@@ -48,8 +50,7 @@ def rate(xs: list[float]) -> tuple[float, float]:
 
 
 def main(argv: list[str]) -> int:
-    root = Path(argv[0] if argv else "runs/rvc_bench")
-    data = load(root)
+    data = load([Path(a) for a in (argv or ["runs/rvc_bench"])])
     summary: dict[str, dict] = {}
     print("| robot | runs | crowd | episodes | success | collision | smallest distance (m) | navigation time (s) |")
     print("|---|---|---|---|---|---|---|---|")
@@ -87,14 +88,15 @@ def main(argv: list[str]) -> int:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    fig, ax = plt.subplots(figsize=(10, 4.6))
+    fig, ax = plt.subplots(figsize=(12, 4.8))
     width = 0.8 / len(ROBOTS)
     x = np.arange(len(CROWDS))
     for i, (cond, label) in enumerate(ROBOTS):
         vals = [summary.get(cond, {}).get(c, {}).get("success", np.nan) for c, _ in CROWDS]
         errs = [summary.get(cond, {}).get(c, {}).get("success_ci95", 0.0) for c, _ in CROWDS]
         ax.bar(x + (i - 1) * width, vals, width, yerr=errs, capsize=3, label=label)
-    ax.set_xticks(x, [lbl.replace(" (", "\n(").replace(", seed", "\nseed") for _, lbl in CROWDS], fontsize=8)
+    ax.set_xticks(x, [lbl.replace(" (", "\n(").replace(", seed", "\nseed").replace(" fine-tuned", "\nfine-tuned")
+                      for _, lbl in CROWDS], fontsize=8)
     ax.set_ylabel("robot success rate")
     ax.set_ylim(0, 1.05)
     ax.set_title("CrowdNav transformer policy fine-tuned against a learned vs a rule-based crowd (circle crossing, 4 people)")
