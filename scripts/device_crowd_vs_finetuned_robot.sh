@@ -10,13 +10,7 @@
 # Writes $OUT/round2_seed<SEED>.tgz (the run folder: config, metrics, final checkpoint) and the log.
 set -u
 OUT=${OUT:?set OUT}
-if command -v nvidia-smi > /dev/null && [ ! -d /tmp/site/ray ]; then  # the device machine
-  python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/*.whl .raysite/deps/*.whl \
-    2>&1 | grep -v "already exists" | tail -2
-  tar xJf .raysite/ray_site.tar.xz -C /tmp/site || exit 1
-fi
-[ -d /tmp/site/ray ] && export PYTHONPATH=/tmp/site:$PWD
-export PYTHONUNBUFFERED=1 RAY_DISABLE_USAGE_STATS=1 OMP_NUM_THREADS=1
+source scripts/device_ray_env.sh
 export NAVZOO_TRANSFORMER_PPO_CROWDNAV_DIR=$PWD/training/robot_vs_crowd/vs_learned_seed0/policy
 PY=${PY:-python3}
 SEED=${SEED:-0}; RUNNERS=${RUNNERS:-14}; ITERS=${ITERS:-38}; TRAIN_S=${TRAIN_S:-450}; BATCH=${BATCH:-4000}

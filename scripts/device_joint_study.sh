@@ -17,13 +17,7 @@
 # $OUT/eval_<condition>_seed<SEED>.json.
 set -u
 OUT=${OUT:?set OUT}
-if command -v nvidia-smi > /dev/null && [ ! -d /tmp/site/ray ]; then  # the device machine
-  python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/*.whl .raysite/deps/*.whl \
-    2>&1 | grep -v "already exists" | tail -2
-  tar xJf .raysite/ray_site.tar.xz -C /tmp/site || exit 1
-fi
-[ -d /tmp/site/ray ] && export PYTHONPATH=/tmp/site:$PWD
-export PYTHONUNBUFFERED=1 RAY_DISABLE_USAGE_STATS=1 OMP_NUM_THREADS=1  # one torch thread per process
+source scripts/device_ray_env.sh
 PY=${PY:-python3}
 SEED=${SEED:-0}; RUNNERS=${RUNNERS:-7}; ITERS=${ITERS:-38}; TRAIN_S=${TRAIN_S:-450}; BATCH=${BATCH:-4000}
 EPISODES=${EPISODES:-100}; EVAL_SEED=${EVAL_SEED:-10000}

@@ -14,13 +14,7 @@
 # checkpoint) and $OUT/<run>.log.
 set -u
 OUT=${OUT:?set OUT}
-if command -v nvidia-smi > /dev/null && [ ! -d /tmp/site/ray ]; then  # the device machine
-  python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/*.whl .raysite/deps/*.whl \
-    2>&1 | grep -v "already exists" | tail -2
-  tar xJf .raysite/ray_site.tar.xz -C /tmp/site || exit 1
-fi
-[ -d /tmp/site/ray ] && export PYTHONPATH=/tmp/site:$PWD
-export PYTHONUNBUFFERED=1 RAY_DISABLE_USAGE_STATS=1 OMP_NUM_THREADS=1
+source scripts/device_ray_env.sh
 PY=${PY:-python3}
 TRAIN_S=${TRAIN_S:-520}; ENVS=${ENVS:-16}; CPUS=${CPUS:-7}; BATCH=${BATCH:-512}; DEVICE=${DEVICE:-cuda}
 CROWD=${CROWD:-runs/joint_study/joint_study/with_robots_seed0}; RUNS=${RUNS:-/tmp/robot_vs_crowd}
