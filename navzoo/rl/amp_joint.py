@@ -579,7 +579,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                                     "init_from": a.robot_init, "lr": a.robot_lr, "n_steps": a.robot_n_steps,
                                     "n_epochs": a.robot_epochs, "batch_size": a.robot_batch_size,
                                     "action_repeat": a.robot_action_repeat, "forward_only": a.robot_forward_only})
-            print(json.dumps(train(args), default=str))
+            summary = train(args)
+            print(json.dumps(summary, default=str))
+            if summary.get("interrupted"):
+                return 130  # Ctrl-C: the iteration finished and a checkpoint was saved (as navzoo train joint)
         else:
             res = evaluate(a.policy, a.env_id, a.n_envs, a.n_humans, a.n_robots, a.robot_policy, a.steps,
                            seed=1000 if a.seed is None else a.seed, env_overrides=env)
