@@ -879,28 +879,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def _env_overrides(args: argparse.Namespace) -> dict[str, Any]:
     """NavConfig overrides named by ``navzoo train robot``'s options (validated by NavConfig)."""
+    from navzoo.envs.config import NavConfig, parse_overrides
+
     extra: dict[str, Any] = {}
     if getattr(args, "kinematics", None):
         extra["robot"] = {"kinematics": args.kinematics}
     for opt in ("robot_subgoal", "robot_progress", "wall_proximity", "scan_rays", "scan_range"):
         if getattr(args, opt, None) is not None:
             extra[opt] = getattr(args, opt)
-    for item in getattr(args, "env_set", None) or []:
-        if "=" not in item:
-            raise ValueError(f"--set takes KEY=VALUE, got {item!r}")
-        key, text = item.split("=", 1)
-        try:
-            value = json.loads(text)
-        except json.JSONDecodeError:
-            value = text
+    for key, value in parse_overrides(getattr(args, "env_set", None)).items():
         if key in ("flat_obs", "n_robots", "scene"):
             raise ValueError(f"--set {key}: navzoo train robot sets it (use --robots-per-env / --scenes)")
         if key == "robot" or key in extra:
             raise ValueError(f"--set {key}: use its own option (--kinematics, --robot-subgoal, ...)")
         extra[key] = value
     if extra:
-        from navzoo.envs.config import NavConfig
-
         NavConfig.from_dict({k: v for k, v in extra.items() if k != "robot"})  # a bad key or value fails here, named
     return extra
 

@@ -315,3 +315,20 @@ def _is_int(v: Any) -> bool:
 
 def _is_pos(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
+
+
+def parse_overrides(items: Any) -> dict[str, Any]:
+    """``["KEY=VALUE", ...]`` (command-line ``--set`` options) as a dict; each value is read as JSON, else
+    kept as a string. ``ValueError`` names an item without ``=``. The keys are checked by NavConfig."""
+    import json
+
+    out: dict[str, Any] = {}
+    for item in items or []:
+        if "=" not in item:
+            raise ValueError(f"--set takes KEY=VALUE, got {item!r}")
+        key, text = item.split("=", 1)
+        try:
+            out[key] = json.loads(text)
+        except json.JSONDecodeError:
+            out[key] = text
+    return out

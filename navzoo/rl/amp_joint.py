@@ -514,19 +514,6 @@ def evaluate(policy: str | None, env_id: str, n_envs: int, n_humans: int, n_robo
 
 
 # ---------------------------------------------------------------------- command line
-def _env_kv(items: Sequence[str]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for it in items:
-        if "=" not in it:
-            raise ValueError(f"--set takes KEY=VALUE, got {it!r}")
-        k, v = it.split("=", 1)
-        try:
-            out[k] = json.loads(v)
-        except json.JSONDecodeError:
-            out[k] = v
-    return out
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m navzoo.rl.amp_joint", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="cmd", required=True)
@@ -568,7 +555,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ev.add_argument("--json", action="store_true")
     a = parser.parse_args(argv)
     try:
-        env = _env_kv(a.set)
+        from navzoo.envs.config import parse_overrides
+
+        env = parse_overrides(a.set)
         if a.cmd == "train":
             args = AmpJointArgs(out=a.out, env_id=a.env_id, n_envs=a.n_envs, n_humans=a.n_humans, n_robots=a.n_robots,
                                 robot_policy=a.robot_policy, steps=a.steps, rollout_steps=a.rollout_steps,
