@@ -136,3 +136,46 @@ def test_learned_crowd_names_with_slashes_get_safe_plot_names(run_dir, tmp_path)
     assert "density_sweep_rllib_runs_joint_study_with_robots_seed0.png" in plots
     assert any(n.startswith("traj_") and "rllib_runs_joint_study_with_robots_seed0" in n for n in plots)
     assert "rllib:runs/joint_study/with_robots_seed0" in (run / "report" / "report.md").read_text()
+
+
+def _small_run(out: Path, methods: str, seed: int = 0) -> Path:
+    spec, _ = resolve_spec(scenes="corridor", methods=methods, density="0.05", episodes=2, max_steps=5, seed=seed)
+    summary = run_benchmark(spec, out, workers=0, progress=False)
+    assert summary["status"] == "complete" and not summary["errors"], summary["errors"]
+    return out
+
+
+def test_report_merges_separate_runs_of_other_methods(tmp_path, capsys):
+    import gzip
+    import shutil
+
+    a = _small_run(tmp_path / "a", "orca")
+    b = _small_run(tmp_path / "b", "stop")
+    committed = tmp_path / "committed"  # a committed run: episodes.jsonl.gz + run.json, as benchmarks/full_sfm
+    committed.mkdir()
+    with open(a / "episodes.jsonl", "rb") as src, gzip.open(committed / "episodes.jsonl.gz", "wb") as dst:
+        shutil.copyfileobj(src, dst)
+    shutil.copy(a / "run.json", committed / "run.json")
+    out = tmp_path / "merged"
+    assert main(["report", str(committed), str(b), "--json", "--no-plots", "--out", str(out)]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["methods"] == ["orca", "stop"] and rep["n_episodes"] == 4
+    assert {src["run"]: src["methods"] for src in rep["merged_from"]} == {str(committed): ["orca"], str(b): ["stop"]}
+    # the same episodes (start, goal, crowd) for both methods
+    recs = load_episodes(out / "merged_run")
+    seeds = {(r["method"], r["episode"]): r["seed"] for r in recs}
+    assert seeds[("orca", 0)] == seeds[("stop", 0)] and seeds[("orca", 1)] == seeds[("stop", 1)]
+    assert "merged from" in (out / "report.md").read_text()
+
+
+def test_report_merge_refuses_runs_that_do_not_compare(tmp_path, capsys):
+    a = _small_run(tmp_path / "a", "stop")
+    other_seed = _small_run(tmp_path / "s", "orca", seed=3)
+    assert main(["report", str(a), str(other_seed), "--out", str(tmp_path / "r1")]) == 2
+    assert "differ in seed" in capsys.readouterr().err
+    assert main(["report", str(a), str(a), "--out", str(tmp_path / "r2")]) == 2  # the same episodes twice
+    assert "is in both" in capsys.readouterr().err
+    assert main(["report", str(a), str(tmp_path / "s")]) == 2  # several runs need --out
+    assert "needs --out" in capsys.readouterr().err
+    assert main(["report", str(a), str(tmp_path / "nothing"), "--out", str(tmp_path / "r3")]) == 2
+    assert "not a benchmark run" in capsys.readouterr().err

@@ -549,6 +549,7 @@ def build_report(run_dir: str | Path, out: str | Path | None = None, plots: bool
         "run": str(run),
         "spec": spec,
         "machine": run_doc.get("machine"),
+        "merged_from": run_doc.get("merged_from"),
         "sessions": sessions,
         "wall_s": wall,
         "episodes_per_hour": 3600.0 * n_run / wall if wall > 0 else None,
@@ -585,6 +586,12 @@ def _rel(path: Path, start: Path) -> str:
     return Path(os.path.relpath(path, start)).as_posix()
 
 
+def _machine_text(machine: Mapping[str, Any]) -> str:
+    commit = (machine.get("git_commit") or "")[:10]
+    return (f"{machine.get('cpu')}, {machine.get('cores')} cores, Python {machine.get('python')}"
+            + (f", navzoo {commit}{' (dirty)' if machine.get('git_dirty') else ''}" if commit else ""))
+
+
 def _run_lines(res: Mapping[str, Any]) -> list[str]:
     spec, machine = res.get("spec") or {}, res.get("machine") or {}
     lines = []
@@ -600,9 +607,10 @@ def _run_lines(res: Mapping[str, Any]) -> list[str]:
                      f"{', '.join(spec.get('crowd', []))} × {lv} × {spec.get('episodes')} episodes, seed "
                      f"{spec.get('seed')}" + (f", protocol {spec['protocol']}" if spec.get("protocol") else ""))
     if machine:
-        commit = (machine.get("git_commit") or "")[:10]
-        lines.append(f"machine: {machine.get('cpu')}, {machine.get('cores')} cores, Python {machine.get('python')}"
-                     + (f", navzoo {commit}{' (dirty)' if machine.get('git_dirty') else ''}" if commit else ""))
+        lines.append(f"machine: {_machine_text(machine)}")
+    for src in res.get("merged_from") or []:
+        lines.append(f"merged from {src.get('run')}: {', '.join(src.get('methods') or [])}"
+                     + (f" (machine: {_machine_text(src['machine'])})" if src.get("machine") else ""))
     if res.get("wall_s"):
         eph = res.get("episodes_per_hour")
         lines.append(f"wall time {res['wall_s'] / 3600:.2f} h over {len(res.get('sessions', []))} session(s)"
@@ -711,8 +719,11 @@ def _html(res: Mapping[str, Any]) -> str:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run_dir", metavar="DIR", help="a run directory of `navzoo benchmark`")
-    parser.add_argument("--out", default=None, help="report folder (default DIR/report)")
+    parser.add_argument("run_dir", metavar="DIR", nargs="+",
+                        help="a run directory of `navzoo benchmark`; several (run directories or folders with a "
+                             "committed episodes.jsonl.gz) are merged into OUT/merged_run first, e.g. a new method's "
+                             "run next to benchmarks/full_sfm (same scenes, levels, seed)")
+    parser.add_argument("--out", default=None, help="report folder (default DIR/report; required with several DIRs)")
     parser.add_argument("--no-plots", action="store_true", help="tables only")
     parser.add_argument("--json", action="store_true",
                         help="print the numbers as one JSON object: per method (overall), per crowd level, scene "
@@ -720,7 +731,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    res = build_report(args.run_dir, args.out, plots=not args.no_plots)
+    run_dir, out = args.run_dir, args.out
+    if isinstance(run_dir, (list, tuple)):
+        if len(run_dir) > 1:
+            if out is None:
+                raise ValueError("navzoo report with several run directories needs --out (the merged run and "
+                                 "its report go there)")
+            from navzoo.benchmark.runner import merge_runs
+
+            merge_runs(run_dir, Path(out) / "merged_run")
+            run_dir = Path(out) / "merged_run"
+        else:
+            run_dir = run_dir[0]
+    res = build_report(run_dir, out, plots=not args.no_plots)
     if args.json:
         print(json.dumps(res, allow_nan=False))
         return 0

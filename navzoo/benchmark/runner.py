@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import gzip
 import hashlib
 import importlib
 import json
@@ -63,6 +64,7 @@ __all__ = [
     "episode_seed",
     "load_episodes",
     "load_errors",
+    "merge_runs",
     "resolve_spec",
     "run_benchmark",
     "run_episode",
@@ -800,6 +802,89 @@ def load_errors(out: str | Path, unresolved: bool = True) -> list[dict[str, Any]
             if episode_key(e) not in done:
                 latest[episode_key(e)] = e
     return list(latest.values())
+
+
+def _source_episodes(src: Path) -> list[dict[str, Any]]:
+    """The episodes of a run directory, or of a folder holding a committed ``episodes.jsonl.gz``."""
+    if (src / EPISODES_FILE).is_file():
+        return load_episodes(src)
+    gz = src / (EPISODES_FILE + ".gz")
+    if not gz.is_file():
+        raise FileNotFoundError(f"{src}: no {EPISODES_FILE} or {EPISODES_FILE}.gz (not a benchmark run)")
+    recs: dict[tuple, dict[str, Any]] = {}
+    with gzip.open(gz, "rt", encoding="utf-8") as f:
+        for line in f:
+            with contextlib.suppress(json.JSONDecodeError, KeyError, TypeError, ValueError):
+                r = json.loads(line)
+                recs[episode_key(r)] = r
+    return list(recs.values())
+
+
+def merge_runs(sources: Sequence[str | Path], out: str | Path) -> dict[str, Any]:
+    """Merge benchmark runs of different methods into one run directory ``out`` for one report.
+
+    Typical use: a new method run on its own (same scenes, levels, episodes and seed) next to a committed
+    baseline run, without rerunning the baselines. Episodes of the same key are the same start, goal and
+    crowd in every run (:func:`episode_seed`), so the rows compare like with like. A source is a run
+    directory or a folder with ``episodes.jsonl.gz`` (and ``run.json``).
+
+    Raises:
+        ValueError: fewer than two sources; runs whose result-changing fields (seed, time limit, step cap,
+            env options, people cap) differ; or the same episode in two sources.
+        FileNotFoundError: a source without episodes.
+    """
+    if len(sources) < 2:
+        raise ValueError("merge_runs needs at least two runs")
+    out = Path(out)
+    episodes: dict[tuple, tuple[str, dict[str, Any]]] = {}
+    docs: list[tuple[str, dict[str, Any]]] = []
+    for src in map(Path, sources):
+        if src.resolve() == out.resolve():
+            raise ValueError(f"the merged run {out} cannot also be a source")
+        doc = json.loads((src / RUN_FILE).read_text(encoding="utf-8")) if (src / RUN_FILE).is_file() else {}
+        if doc.get("spec"):
+            fields = {k: doc["spec"].get(k) for k in _RESULT_FIELDS}  # run.json holds BenchmarkSpec.to_dict()
+            for name, first in docs:
+                if first.get("spec"):
+                    other = {k: first["spec"].get(k) for k in _RESULT_FIELDS}
+                    diff = [k for k in fields if fields[k] != other[k]]
+                    if diff:
+                        raise ValueError(f"{src} and {name} differ in {', '.join(diff)} "
+                                         f"({', '.join(f'{k}: {fields[k]!r} vs {other[k]!r}' for k in diff)}): "
+                                         "their episodes are not comparable")
+        docs.append((str(src), doc))
+        for r in _source_episodes(src):
+            key = episode_key(r)
+            if key in episodes:
+                raise ValueError(f"episode {key} is in both {episodes[key][0]} and {src}")
+            episodes[key] = (str(src), r)
+    specs = [d["spec"] for _, d in docs if d.get("spec")]
+    spec: dict[str, Any] = dict(specs[0]) if specs else {}
+    for k in ("scenes", "methods", "crowd", "density", "humans"):
+        vals: list[Any] = []
+        for sp in specs:
+            for v in sp.get(k) or []:
+                if v not in vals:
+                    vals.append(v)
+        if vals:
+            spec[k] = sorted(vals) if k in ("density", "humans") else vals
+    if specs:
+        spec["episodes"] = max(int(sp.get("episodes") or 0) for sp in specs)
+    sessions = [dict(s, run=name) for name, d in docs for s in d.get("sessions", [])]
+    methods = {name: sorted({r["method"] for n, r in episodes.values() if n == name}) for name, _ in docs}
+    doc = {"created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+           "merged_from": [{"run": name, "methods": methods[name], "machine": d.get("machine")} for name, d in docs],
+           "spec": spec, "machine": None,
+           "thresholds": next((d["thresholds"] for _, d in docs if d.get("thresholds")), None),
+           "episodes_total": len(episodes), "sessions": sessions, "episodes_done": len(episodes)}
+    out.mkdir(parents=True, exist_ok=True)
+    tmp = out / (EPISODES_FILE + ".tmp")
+    with open(tmp, "w", encoding="utf-8") as f:
+        for _, r in episodes.values():
+            f.write(json.dumps(r, allow_nan=False) + "\n")
+    os.replace(tmp, out / EPISODES_FILE)
+    _write_json(out / RUN_FILE, doc)
+    return doc
 
 
 def _repair_tail(path: Path) -> None:
