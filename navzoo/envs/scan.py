@@ -49,6 +49,7 @@ class ScanPolicy:
         return self.policy.controlled(observations, env)
 
     def reset(self, env: NavEnv) -> None:
+        env = getattr(env, "unwrapped", env)  # a wrapper of navzoo.make: the NavEnv under it
         self.policy.reset(env)
 
     def _passthrough(self, env: NavEnv) -> bool:
@@ -56,6 +57,7 @@ class ScanPolicy:
         return cfg.scan_rays == self.rays and abs(cfg.scan_range - self.scan_range) < 1e-9
 
     def act(self, observations: Mapping[str, Any], env: NavEnv) -> dict[str, np.ndarray]:
+        env = getattr(env, "unwrapped", env)
         if self._passthrough(env):
             return self.policy.act(observations, env)
         from navzoo.agents.transformer import flat_layout

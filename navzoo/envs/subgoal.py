@@ -214,6 +214,7 @@ class GuidedPolicy:
         return own is not None and abs(float(own) - self.lookahead) < 1e-9
 
     def reset(self, env: NavEnv) -> None:
+        env = getattr(env, "unwrapped", env)  # a wrapper of navzoo.make: the NavEnv under it
         self.policy.reset(env)
         if self._passthrough(env):
             self.guide = None
@@ -227,6 +228,7 @@ class GuidedPolicy:
         self.guide.reset(env.pos[:R], env.goal[:R])
 
     def act(self, observations: Mapping[str, Any], env: NavEnv) -> dict[str, np.ndarray]:
+        env = getattr(env, "unwrapped", env)
         from navzoo.envs import observations as obs_terms
 
         if self._passthrough(env):
