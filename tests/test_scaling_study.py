@@ -112,6 +112,24 @@ def test_parallel_study_and_plots(tmp_path, runtime_rows):
     assert png.stat().st_size > 1000 and png.read_bytes()[:4] == PNG_MAGIC
 
 
+def test_parallel_run_cut_off_continues_from_its_checkpoint(tmp_path, capsys):
+    runs, out = tmp_path / "runs", tmp_path / "par.jsonl"
+    kw = dict(workers=0, model=TINY, n_steps=16, n_epochs=1, out=out, resume=True, runs_dir=runs)
+    # a wall limit that ends the run at its first chance: no row yet, a checkpoint to go on from
+    assert parallel_training([1], [64], 64, "home", "cpu", time_limit_s=1e-3, **kw) == []
+    assert "run the same command again to continue it" in capsys.readouterr().err
+    (run_dir,) = runs.iterdir()
+    ckpts = list((run_dir / "checkpoints").glob("step_*.pt"))
+    assert ckpts and not out.exists()
+    first = int(ckpts[0].stem.split("_")[1])
+    assert first < 64
+    (row,) = parallel_training([1], [64], 64, "home", "cpu", **kw)  # the same configuration: continues
+    assert row["timesteps"] == 64 and row["stop_reason"] == "total_steps"
+    assert row["iterations"] == 4 and row["iteration_s_median"] > 0
+    assert read_jsonl(out) == [row]
+    assert parallel_training([1], [64], 64, "home", "cpu", **kw) == []  # finished: skipped
+
+
 def test_resume_skips_measured_rows(tmp_path, capsys):
     out = tmp_path / "rt.jsonl"
     (first,) = runtime_scaling("peds", [1], "home", 1.0, "cpu", workers=0, steps=3, out=out)

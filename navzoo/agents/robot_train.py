@@ -679,10 +679,11 @@ class _TrainCallback(BaseCallback):
         self._last_saved = 0
         self._t_learn = time.perf_counter()
         self._steps0 = 0
+        self.rollout_end = 0  # num_timesteps at the end of the last whole rollout
 
     def _on_training_start(self) -> None:
         self._t_learn = time.perf_counter()
-        self._steps0 = self._last_saved = int(self.model.num_timesteps)
+        self._steps0 = self._last_saved = self.rollout_end = int(self.model.num_timesteps)
 
     def _on_step(self) -> bool:
         for i, (info, done) in enumerate(zip(self.locals["infos"], self.locals["dones"], strict=True)):
@@ -696,13 +697,14 @@ class _TrainCallback(BaseCallback):
         return self.stop["reason"] is None
 
     def _on_rollout_end(self) -> None:
-        n = int(self.model.num_timesteps)
+        n = self.rollout_end = int(self.model.num_timesteps)
         elapsed = time.perf_counter() - self._t_learn
         eps = list(self.model.ep_info_buffer or [])
         ev = list(self.events)
         row: dict[str, Any] = {
             "timesteps": n, "fps": round((n - self._steps0) / max(elapsed, 1e-9), 2),
-            "elapsed_s": round(time.perf_counter() - self.t_start, 1), "episodes": len(ev),
+            "elapsed_s": round(time.perf_counter() - self.t_start, 1), "learn_s": round(elapsed, 3),
+            "episodes": len(ev),
             "ep_rew_mean": round(float(np.mean([e["r"] for e in eps])), 4) if eps else None,
             "ep_len_mean": round(float(np.mean([e["l"] for e in eps])), 2) if eps else None,
             "success_rate": round(ev.count("goal") / len(ev), 4) if ev else None,
@@ -787,6 +789,11 @@ def train(args: TrainArgs) -> dict[str, Any]:
             callback = _TrainCallback(args, t_start, stop, log)
             model.learn(args.total_steps - done, callback=callback, reset_num_timesteps=not found,
                         tb_log_name="transformer_ppo")
+            if model.num_timesteps > callback.rollout_end:
+                # Stopped inside a rollout (time limit, Ctrl-C): those steps were never trained on. Count
+                # only the whole rollouts, so that a resumed run collects exactly its budget in whole ones.
+                summary["discarded_partial_rollout_steps"] = int(model.num_timesteps - callback.rollout_end)
+                model.num_timesteps = callback.rollout_end
             summary["checkpoint"] = str(_save_checkpoint(model, args, args.keep))
         meta = {"scenes": list(args.scenes), "n_steps": args.n_steps, "n_epochs": args.n_epochs,
                 "batch_size": args.batch_size, "lr": args.lr, "gamma": args.gamma, "seed": args.seed,

@@ -420,7 +420,15 @@ def _measure_infer(scene_id: str, n: int, workers: int, seconds: float, steps: i
 
 
 def _metrics(out: Path) -> list[dict[str, Any]]:
-    return [r for r in read_jsonl(out / "metrics.jsonl") if "timesteps" in r and "fps" in r]
+    """The rollout lines of a run's ``metrics.jsonl``. A resumed run redoes the rollouts after its last
+    checkpoint and appends them again: the rollouts cut off with the earlier session are dropped."""
+    lines = [r for r in read_jsonl(out / "metrics.jsonl") if "timesteps" in r and "fps" in r]
+    kept: list[dict[str, Any]] = []
+    for ln in lines:
+        while kept and kept[-1]["timesteps"] >= ln["timesteps"]:
+            kept.pop()
+        kept.append(ln)
+    return kept
 
 
 def _train_quiet(targs: Any) -> dict[str, Any]:
@@ -586,6 +594,13 @@ def _iteration_times(lines: Sequence[Mapping[str, Any]], train_elapsed_s: float 
     iteration is estimated as its rollout time plus the rest of the run (the final update,
     checkpoint and export).
     """
+    if len(lines) >= 2 and all(ln.get("learn_s") is not None for ln in lines):
+        # learn_s: seconds since this session's learning started; it falls back at a resume, and the
+        # interval across a resume (restart, reload) is no iteration
+        t = [float(ln["learn_s"]) for ln in lines]
+        diffs = [b - a for a, b in zip(t, t[1:], strict=False) if b > a]
+        return diffs, ("median of differences between rollout lines (learn_s, within each session)"
+                       + ("; resumed" if len(diffs) < len(t) - 1 else ""))
     t = [ln["timesteps"] / ln["fps"] for ln in lines if ln.get("fps")]
     if len(t) >= 2:
         return [b - a for a, b in zip(t, t[1:], strict=False)], "median of differences between rollout lines"
@@ -607,7 +622,7 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
                       device: str = "auto", *, target_updates: int = 5000, workers: int | None = None,
                       n_steps: int = 32, n_epochs: int = 6, seed: int = 0, threads: int | None = 1,
                       model: ModelSize | None = None, time_limit_s: float | None = None,
-                      out: str | Path | None = None, resume: bool = False,
+                      out: str | Path | None = None, resume: bool = False, runs_dir: str | Path | None = None,
                       echo: bool = False) -> list[dict[str, Any]]:
     """Training time per PPO iteration and final reward for R parallel robots and minibatch size B.
 
@@ -627,13 +642,17 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
         seed: training seed.
         threads: torch intra-op threads.
         model: policy shape (default :class:`ModelSize`).
-        time_limit_s: optional wall limit of each run (a run stopped early has fewer iterations).
+        time_limit_s: optional wall limit of each run (a run stopped early has fewer iterations; with
+            ``runs_dir`` it is continued by the next call instead, and gives no row until it is complete).
         out: JSONL file each row is appended to when its run finishes.
         resume: skip the configurations already in ``out``.
+        runs_dir: keep each run's training folder here (checkpoints every 25 iterations) instead of a
+            temporary one, so that a run cut off by ``time_limit_s``, a crash or Ctrl-C continues from its
+            last checkpoint when the same configuration is run again (runs longer than one session).
         echo: print each row as one JSON line on stdout.
 
     Returns:
-        The rows of the runs done by this call.
+        The rows of the runs finished by this call.
 
     Raises:
         ValueError: for empty lists, non-positive counts, batch sizes < 2, unknown scene or device.
@@ -667,18 +686,31 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
             rollout = n_steps * r
             batch = min(b, rollout)
             info = machine_info()
-            with tempfile.TemporaryDirectory(prefix="navzoo_scaling_parallel_") as tmp:
-                targs = TrainArgs(out=tmp, scenes=(scene_id,), n_envs=r, num_cpus=w, total_steps=int(sim_steps) * r,
-                                  n_steps=n_steps, n_epochs=n_epochs, batch_size=batch, device=dev, threads=threads,
-                                  seed=seed, save_every=10**12, keep=1, time_limit_s=time_limit_s,
-                                  features_dim=model.features_dim, heads=model.heads, blocks=model.blocks,
-                                  net_arch=tuple(model.net_arch))
+            with contextlib.ExitStack() as stack:
+                if runs_dir is None:
+                    run_dir = stack.enter_context(tempfile.TemporaryDirectory(prefix="navzoo_scaling_parallel_"))
+                    save_every = 10**12
+                else:
+                    name = (f"{scene_id.replace('/', '_')}_r{r}_b{b}_sim{int(sim_steps)}_n{n_steps}_e{n_epochs}_{dev}"
+                            f"_w{w}_seed{seed}")
+                    run_dir = str(Path(runs_dir) / name)
+                    save_every = 25 * rollout
+                targs = TrainArgs(out=run_dir, scenes=(scene_id,), n_envs=r, num_cpus=w,
+                                  total_steps=int(sim_steps) * r, n_steps=n_steps, n_epochs=n_epochs,
+                                  batch_size=batch, device=dev, threads=threads, seed=seed, save_every=save_every,
+                                  keep=1, time_limit_s=time_limit_s, features_dim=model.features_dim,
+                                  heads=model.heads, blocks=model.blocks, net_arch=tuple(model.net_arch))
                 with _torch_threads(threads):
                     info["torch_threads"] = threads or torch.get_num_threads()
                     t0 = time.perf_counter()
                     summary = _train_quiet(targs)
                     wall = time.perf_counter() - t0
-                lines = _metrics(Path(tmp))
+                lines = _metrics(Path(run_dir))
+            if runs_dir is not None and summary.get("reason") != "total_steps":
+                print(f"scaling_study: robots={r} batch={b}: stopped ({summary.get('reason')}) at "
+                      f"{summary.get('timesteps')} of {int(sim_steps) * r} robot steps; run the same command again "
+                      f"to continue it from {run_dir}", file=sys.stderr)
+                continue
             iters, source = _iteration_times(lines, summary.get("elapsed_s"))
             med = float(np.median(iters)) if iters else None
             first_rollout_s = lines[0]["timesteps"] / lines[0]["fps"] if lines and lines[0].get("fps") else None
@@ -916,6 +948,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     pt.add_argument("--target-updates", type=_pos_int(1), default=5000,
                     help="updates the iteration time is extrapolated to (paper: 5000)")
     pt.add_argument("--time-limit-s", type=_pos_float, default=None, help="optional wall limit of each run")
+    pt.add_argument("--runs-dir", default=None,
+                    help="keep the runs' training folders here (checkpointed) so that a run stopped by "
+                         "--time-limit-s, a crash or Ctrl-C continues when the command is run again")
     _common(pt)
     pl = sub.add_parser("plot", help="draw the figures from the JSONL files",
                         description="Plot runtime.png and/or parallel.png from the studies' JSONL files.")
@@ -968,7 +1003,8 @@ def run_cli(args: argparse.Namespace, error: Callable[[str], Any] | None = None)
     parallel_training(args.robots, args.batch_sizes, args.sim_steps, args.scene, args.device,
                       target_updates=args.target_updates, workers=args.workers, n_steps=args.n_steps,
                       n_epochs=args.n_epochs, seed=args.seed, threads=args.threads, model=model,
-                      time_limit_s=args.time_limit_s, out=args.out, resume=args.resume, echo=True)
+                      time_limit_s=args.time_limit_s, out=args.out, resume=args.resume, runs_dir=args.runs_dir,
+                      echo=True)
     if args.plot:
         print(json.dumps({"plot": str(plot_parallel(read_jsonl(args.out), args.plot))}))
     return 0
