@@ -87,6 +87,22 @@ def test_kinematics_mismatch_is_reported():
     env.close()
 
 
+def test_learned_policy_for_other_robots_is_refused():
+    class Zero:
+        def predict(self, obs, deterministic=True):
+            return np.zeros((len(obs["goal"]), 2), np.float32), None
+
+    env = navzoo.make("navzoo/CircleCrossing-v0", n_humans=1)  # holonomic robot
+    obs, _ = env.reset(seed=0)
+    with pytest.raises(ValueError, match="trained for 'diff_drive' robots but this env's robot is 'holonomic'"):
+        SB3Policy(Zero(), kinematics="diff_drive", name="net").act(obs, env)
+    assert set(SB3Policy(Zero(), kinematics="holonomic").act(obs, env)) == {"robot_0"}
+    assert set(SB3Policy(Zero()).act(obs, env)) == {"robot_0"}  # unknown: not checked
+    with pytest.raises(ValueError, match="kinematics must be"):
+        SB3Policy(Zero(), kinematics="tracked")
+    env.close()
+
+
 @pytest.mark.parametrize("name", policy_names())
 def test_every_policy_acts_for_exactly_the_live_robots(name):
     robot = {"kinematics": _kinematics_of(name)}
@@ -103,9 +119,11 @@ def test_every_policy_acts_for_exactly_the_live_robots(name):
     env.close()
 
 
-def test_done_robots_and_people_get_no_action():
-    env = make_raw("navzoo/CircleCrossing-v0", n_robots=2, n_humans=2)
+def _robot_0_done(kinematics: str):
+    """A CircleCrossing world with two robots of ``kinematics`` where robot_0 reached its goal."""
+    env = make_raw("navzoo/CircleCrossing-v0", n_robots=2, n_humans=2, robot={"kinematics": kinematics})
     options = {"robot_starts": [[0.0, -4.0], [-4.0, 0.0]], "robot_goals": [[0.0, -3.5], [4.0, 0.0]],
+               "robot_yaws": [np.pi / 2, 0.0],
                "human_starts": [[3.0, 3.0], [-3.0, 3.0]], "human_goals": [[-3.0, -3.0], [3.0, -3.0]]}
     obs, _ = env.reset(seed=0, options=options)
     pp = PurePursuitPolicy()
@@ -115,16 +133,24 @@ def test_done_robots_and_people_get_no_action():
         obs, *_ = env.step(acts)
     assert "robot_1" in env.agents
     assert "robot_0" in obs  # its last observation is still there: a policy must not act on it
+    return env, obs
+
+
+def test_done_robots_and_people_get_no_action():
+    env, obs = _robot_0_done("holonomic")
     stale = {a: None for a in env.possible_agents}  # robot_0 is done, people are not robots
     for name in policy_names():
-        if name.endswith("diffdrive"):  # the CrowdNav robot is holonomic
+        if name.endswith("diffdrive") or name in baselines.LEARNED_POLICIES:  # diff-drive robots: below
             continue
-        policy = make_policy(name)
-        if name in baselines.LEARNED_POLICIES:  # networks read real observations (and plan on reset)
-            policy.reset(env)
-            assert set(policy.act(obs, env)) == {"robot_1"}, name
-        else:
-            assert set(policy.act(stale, env)) == {"robot_1"}, name
+        assert set(make_policy(name).act(stale, env)) == {"robot_1"}, name
+    env.close()
+    env, obs = _robot_0_done("diff_drive")
+    for name in baselines.LEARNED_POLICIES:
+        if name not in policy_names():
+            continue  # no weights in this checkout
+        policy = make_policy(name)  # networks read real observations (and plan their subgoals on reset)
+        policy.reset(env)
+        assert set(policy.act(obs, env)) == {"robot_1"}, name
     env.close()
 
 

@@ -175,17 +175,39 @@ class SB3Policy(ObservationPolicy):
 
     All controlled robots are predicted in one batched ``predict`` call. ``obs_transform`` is applied
     to the stacked batch first (e.g. ``vec_normalize.normalize_obs`` for a model trained under
-    ``VecNormalize``).
+    ``VecNormalize``). ``kinematics`` (``"diff_drive"`` / ``"holonomic"``), when given, is the robot the
+    model was trained for: acting in an env with the other robot raises ``ValueError`` instead of
+    driving it with actions of the wrong meaning.
     """
 
     def __init__(self, model: Any, deterministic: bool = True, agents: AgentSelector = "robot_",
-                 obs_transform: Callable[[Any], Any] | None = None, name: str = "sb3") -> None:
+                 obs_transform: Callable[[Any], Any] | None = None, name: str = "sb3",
+                 kinematics: str | None = None) -> None:
         if not hasattr(model, "predict"):
             raise TypeError(f"model must have a predict(obs, deterministic=...) method, got {type(model).__name__}")
+        if kinematics not in (None, "diff_drive", "holonomic"):
+            raise ValueError(f"kinematics must be None, 'diff_drive' or 'holonomic', got {kinematics!r}")
         self.model = model
         self.deterministic = deterministic
         self.obs_transform = obs_transform
+        self.kinematics = kinematics
         super().__init__(self._predict, batched=True, agents=agents, name=name)
+
+    def _check_env(self, env: Any) -> None:
+        if self.kinematics is None or env is None:
+            return
+        actual = getattr(getattr(getattr(env, "unwrapped", env), "config", None), "robot", None)
+        actual = getattr(actual, "kinematics", None)
+        if actual is not None and actual != self.kinematics:
+            raise ValueError(f"policy {self.name!r} was trained for {self.kinematics!r} robots but this env's robot "
+                             f"is {actual!r}; make the env with robot={{'kinematics': {self.kinematics!r}}}")
+
+    def reset(self, env: NavEnv | None = None) -> None:
+        self._check_env(env)
+
+    def act(self, observations: Mapping[str, Any], env: NavEnv | None = None) -> dict[str, np.ndarray]:
+        self._check_env(env)
+        return super().act(observations, env)
 
     def _predict(self, batch: Any) -> np.ndarray:
         if self.obs_transform is not None:

@@ -441,8 +441,12 @@ def load_policy(model_dir: str | Path | None = None, deterministic: bool = True,
         raise ValueError(f"{weights} does not fit the architecture in {cfg_path}: {err}") from err
     policy = policy.to(device)
     policy.set_training_mode(False)
-    sb3 = SB3Policy(policy, deterministic=deterministic, obs_transform=_obs_converter(kind, k, t, c, r), name=name)
     env_overrides = (cfg.get("training") or {}).get("env_overrides") or {}
+    # --forward-only is refused for holonomic robots, so such a policy drives (v, omega) of a diff-drive one
+    kinematics = ("diff_drive" if (cfg.get("training") or {}).get("forward_only")
+                  else (env_overrides.get("robot") or {}).get("kinematics"))
+    sb3 = SB3Policy(policy, deterministic=deterministic, obs_transform=_obs_converter(kind, k, t, c, r), name=name,
+                    kinematics=kinematics if kinematics in ("diff_drive", "holonomic") else None)
     lookahead = env_overrides.get("robot_subgoal")
     out: Any = sb3
     if lookahead is not None:
