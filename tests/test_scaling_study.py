@@ -130,6 +130,24 @@ def test_parallel_run_cut_off_continues_from_its_checkpoint(tmp_path, capsys):
     assert parallel_training([1], [64], 64, "home", "cpu", **kw) == []  # finished: skipped
 
 
+def test_ctrl_c_stops_the_whole_parallel_study(tmp_path, monkeypatch):
+    import navzoo.agents.scaling_study as study
+
+    calls = []
+
+    def interrupted(targs):  # what robot_train returns after Ctrl-C: checkpoint saved, reason "interrupted"
+        calls.append(targs.n_envs)
+        return {"timesteps": 16, "reason": "interrupted", "elapsed_s": 0.1}
+
+    monkeypatch.setattr(study, "_train_quiet", interrupted)
+    for runs_dir in (None, tmp_path / "runs"):
+        with pytest.raises(KeyboardInterrupt):
+            parallel_training([1, 2], [64], 64, "home", "cpu", workers=0, model=TINY, n_steps=16, n_epochs=1,
+                              out=tmp_path / "par.jsonl", runs_dir=runs_dir)
+    assert calls == [1, 1]  # the R = 2 runs never started
+    assert not (tmp_path / "par.jsonl").exists()  # and no row of an unfinished run
+
+
 def test_resume_skips_measured_rows(tmp_path, capsys):
     out = tmp_path / "rt.jsonl"
     (first,) = runtime_scaling("peds", [1], "home", 1.0, "cpu", workers=0, steps=3, out=out)

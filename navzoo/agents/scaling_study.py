@@ -710,7 +710,11 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
                 print(f"scaling_study: robots={r} batch={b}: stopped ({summary.get('reason')}) at "
                       f"{summary.get('timesteps')} of {int(sim_steps) * r} robot steps; run the same command again "
                       f"to continue it from {run_dir}", file=sys.stderr)
+                if summary.get("reason") == "interrupted":
+                    raise KeyboardInterrupt  # Ctrl-C (or SIGINT from a time limit) stops the study, not one run
                 continue
+            if summary.get("reason") == "interrupted":
+                raise KeyboardInterrupt
             iters, source = _iteration_times(lines, summary.get("elapsed_s"))
             med = float(np.median(iters)) if iters else None
             first_rollout_s = lines[0]["timesteps"] / lines[0]["fps"] if lines and lines[0].get("fps") else None
