@@ -1,6 +1,6 @@
 """Trips of the kinematic crowd with and without turn-taking (NavConfig.human_yielding).
 
-    python scripts/crowd_deadlocks.py [--seconds 200] [--crowd sfm] [--scenes station,home,...]
+    python scripts/crowd_deadlocks.py [--seconds 200] [--crowd sfm|orca|diffusion] [--scenes station,home,...]
 
 Runs the pedestrian-following scenes of ``navzoo eval pedestrians`` (3-15 pedestrians, no robot)
 with kinematic pedestrians, once with turn-taking off and once on, and prints a Markdown table of
@@ -49,7 +49,7 @@ def trips(scene: str, n: int, seconds: float, crowd: str, yielding: bool, seed: 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=200.0)
-    ap.add_argument("--crowd", default="sfm", choices=["sfm", "orca"])
+    ap.add_argument("--crowd", default="sfm", choices=["sfm", "orca", "diffusion"])
     ap.add_argument("--scenes", default=",".join(SCENES))
     args = ap.parse_args()
     scenes = args.scenes.split(",")
