@@ -706,15 +706,15 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
                     summary = _train_quiet(targs)
                     wall = time.perf_counter() - t0
                 lines = _metrics(Path(run_dir))
-            if runs_dir is not None and summary.get("reason") != "total_steps":
+            unfinished = runs_dir is not None and summary.get("reason") != "total_steps"
+            if unfinished:
                 print(f"scaling_study: robots={r} batch={b}: stopped ({summary.get('reason')}) at "
                       f"{summary.get('timesteps')} of {int(sim_steps) * r} robot steps; run the same command again "
                       f"to continue it from {run_dir}", file=sys.stderr)
-                if summary.get("reason") == "interrupted":
-                    raise KeyboardInterrupt  # Ctrl-C (or SIGINT from a time limit) stops the study, not one run
-                continue
             if summary.get("reason") == "interrupted":
-                raise KeyboardInterrupt
+                raise KeyboardInterrupt  # Ctrl-C (or SIGINT from a time limit) stops the study, not one run
+            if unfinished:
+                continue
             iters, source = _iteration_times(lines, summary.get("elapsed_s"))
             med = float(np.median(iters)) if iters else None
             first_rollout_s = lines[0]["timesteps"] / lines[0]["fps"] if lines and lines[0].get("fps") else None

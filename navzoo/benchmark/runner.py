@@ -767,8 +767,13 @@ def _json_safe(value: Any) -> Any:
 def _read_jsonl(path: Path) -> list[dict[str, Any]]:
     if not path.is_file():
         return []
+    if path.name.endswith(".gz"):  # a committed run (benchmarks/*/episodes.jsonl.gz)
+        with gzip.open(path, "rt", encoding="utf-8") as f:
+            text = f.read()
+    else:
+        text = path.read_text(encoding="utf-8")
     out = []
-    for line in path.read_text(encoding="utf-8").splitlines():
+    for line in text.splitlines():
         line = line.strip()
         if not line:
             continue
@@ -781,13 +786,17 @@ def _read_jsonl(path: Path) -> list[dict[str, Any]]:
     return out
 
 
-def load_episodes(out: str | Path) -> list[dict[str, Any]]:
-    """The finished episodes of a run directory (one record per episode key, the last one written)."""
+def _episodes_in(path: Path) -> list[dict[str, Any]]:
     recs: dict[tuple, dict[str, Any]] = {}
-    for r in _read_jsonl(Path(out) / EPISODES_FILE):
+    for r in _read_jsonl(path):
         with contextlib.suppress(KeyError, TypeError, ValueError):
             recs[episode_key(r)] = r
     return list(recs.values())
+
+
+def load_episodes(out: str | Path) -> list[dict[str, Any]]:
+    """The finished episodes of a run directory (one record per episode key, the last one written)."""
+    return _episodes_in(Path(out) / EPISODES_FILE)
 
 
 def load_errors(out: str | Path, unresolved: bool = True) -> list[dict[str, Any]]:
@@ -806,18 +815,10 @@ def load_errors(out: str | Path, unresolved: bool = True) -> list[dict[str, Any]
 
 def _source_episodes(src: Path) -> list[dict[str, Any]]:
     """The episodes of a run directory, or of a folder holding a committed ``episodes.jsonl.gz``."""
-    if (src / EPISODES_FILE).is_file():
-        return load_episodes(src)
-    gz = src / (EPISODES_FILE + ".gz")
-    if not gz.is_file():
-        raise FileNotFoundError(f"{src}: no {EPISODES_FILE} or {EPISODES_FILE}.gz (not a benchmark run)")
-    recs: dict[tuple, dict[str, Any]] = {}
-    with gzip.open(gz, "rt", encoding="utf-8") as f:
-        for line in f:
-            with contextlib.suppress(json.JSONDecodeError, KeyError, TypeError, ValueError):
-                r = json.loads(line)
-                recs[episode_key(r)] = r
-    return list(recs.values())
+    for path in (src / EPISODES_FILE, src / (EPISODES_FILE + ".gz")):
+        if path.is_file():
+            return _episodes_in(path)
+    raise FileNotFoundError(f"{src}: no {EPISODES_FILE} or {EPISODES_FILE}.gz (not a benchmark run)")
 
 
 def merge_runs(sources: Sequence[str | Path], out: str | Path) -> dict[str, Any]:
