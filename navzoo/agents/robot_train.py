@@ -26,14 +26,16 @@ reward, which is the paper's) trained on a vector env that mixes the station, ho
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import signal
 import sys
+import threading
 import time
 import warnings
 from collections import deque
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -245,9 +247,26 @@ def make_mixed_vec_env(env_ids: Sequence[str] = TRAIN_SCENES, n_envs: int = 1, s
         from supersuit.vector.constructors import call_wrap
 
         chunks = [fns[s:s + per_worker] for s in range(0, n_copies, per_worker)]
-        vec = ProcConcatVec([call_wrap(ConcatVecEnv, c) for c in chunks], obs_space, act_space,
-                            n_copies * int(robots_per_env), NavEnv.metadata)
+        # The workers ignore SIGINT: Ctrl-C (or `timeout -s INT`) reaches the whole process group, and a
+        # worker killed by it breaks the pipe before the trainer can save its stop checkpoint. The
+        # trainer handles the signal and closes the workers itself.
+        with _sigint_ignored():
+            vec = ProcConcatVec([call_wrap(ConcatVecEnv, c) for c in chunks], obs_space, act_space,
+                                n_copies * int(robots_per_env), NavEnv.metadata)
     return SeededSB3VecEnv(vec, seed)
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore SIGINT in this block, so that processes started in it inherit SIG_IGN (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -62,6 +65,12 @@ def test_worker_processes_match_the_protocol(reference):
         obs, rew, term, trunc, info = vec.step(np.zeros((4, vec.act_dim)))
         assert rew.shape == (4,) and info["amp_obs"].shape == (4, vec.amp_obs_dim)
         assert vec.sample_reference_amp_obs(8, np.random.default_rng(0)).shape == (8, vec.amp_obs_dim)
+        # Ctrl-C reaches the workers too (process group): they must live on for the learner's checkpoint
+        for proc in vec._procs:
+            os.kill(proc.pid, signal.SIGINT)
+        time.sleep(0.5)
+        assert all(proc.is_alive() for proc in vec._procs)
+        assert vec.step(np.zeros((4, vec.act_dim)))[0].shape == (4, vec.obs_dim)
     finally:
         vec.close()
 

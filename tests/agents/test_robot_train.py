@@ -128,6 +128,29 @@ def test_mixed_vec_env_seeds_each_copy(num_cpus):
         np.testing.assert_array_equal(obs[i], o["robot_0"])
 
 
+def test_mixed_vec_env_workers_ignore_sigint():
+    """Ctrl-C reaches the whole process group: the workers must live on so the trainer can checkpoint."""
+    import os
+    import signal
+    import time
+
+    before = signal.getsignal(signal.SIGINT)
+    vec = make_mixed_vec_env(["navzoo/Home-v0"], n_envs=2, seed=0, num_cpus=2)
+    try:
+        assert signal.getsignal(signal.SIGINT) is before  # restored in the trainer's process
+        vec.reset()
+        procs = vec.venv.procs
+        assert len(procs) == 2
+        for proc in procs:
+            os.kill(proc.pid, signal.SIGINT)
+        time.sleep(0.5)
+        assert all(proc.is_alive() for proc in procs)
+        obs, _, _, _ = vec.step(np.zeros((2, 2), dtype=np.float32))
+        assert obs.shape[0] == 2 and np.isfinite(obs).all()
+    finally:
+        vec.close()
+
+
 def _tiny_model(vec):
     from stable_baselines3 import PPO
 

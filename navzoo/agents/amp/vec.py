@@ -9,6 +9,7 @@ that dies is reported with its index and the last command instead of hanging the
 from __future__ import annotations
 
 import multiprocessing as mp
+import signal
 import traceback
 from collections.abc import Callable
 from typing import Any
@@ -21,6 +22,9 @@ from navzoo.agents.reference import ReferenceMotion
 
 def _worker(conn: Any, make_reference: Callable[[], ReferenceMotion], n: int, config: PathTaskConfig,
             seed: int) -> None:
+    # Ctrl-C reaches the whole process group; the learner handles it (finishes the iteration and
+    # checkpoints, which needs the workers) and closes them.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     env = None
     try:
         env = AmpPathEnv(n, make_reference(), config, seed=seed)
