@@ -137,3 +137,5 @@ def test_new_goal_replans_only_that_person_and_plans_blend(model_dir):
     w.close()
     with pytest.raises(ValueError, match="blend_s"):
         DiffusionCrowd(TrajectoryDiffusion(CFG), blend_s=-1.0)
+    with pytest.raises(ValueError, match="smooth_weight"):
+        DiffusionCrowd(TrajectoryDiffusion(CFG), smooth_weight=-1.0)

@@ -168,6 +168,23 @@ def test_path_cost_is_zero_on_the_path_and_grows_off_it():
     torch.testing.assert_close(c, torch.tensor([0.0, 2.0, 0.0]))  # on it; 1 m off at every step; not valid
 
 
+def test_smoothness_cost_is_zero_for_steady_walking_and_counts_turns_and_speed_jumps():
+    from navzoo.agents.diffusion.guidance import smoothness_cost
+
+    start = torch.tensor([[[-0.5, 0.0], [0.0, 0.0]]])  # walking +x at 0.5 m per step, last point at the origin
+    cost = smoothness_cost(start, weight=3.0)
+    steps = torch.arange(1, 13).float()[:, None]
+    steady = steps * torch.tensor([0.5, 0.0])
+    stop = torch.zeros(12, 2)  # stands still from the first step: its step changes by 0.5 m once
+    turn = steps * torch.tensor([0.0, 0.5])  # 90 degrees at once: second difference (-0.5, 0.5) at step 1
+    c = cost(torch.stack([steady, stop, turn]), torch.zeros(3, dtype=torch.long))
+    torch.testing.assert_close(c, torch.tensor([0.0, 3.0 * 0.25, 3.0 * 0.5]))
+    # its gradient step makes a jerky plan smoother
+    pos = turn.clone()[None].requires_grad_(True)
+    (g,) = torch.autograd.grad(cost(pos, torch.zeros(1, dtype=torch.long)).sum(), pos)
+    assert cost(pos.detach() - 0.05 * g, torch.zeros(1, dtype=torch.long)) < c[2]
+
+
 def test_forecaster_passes_the_map_to_map_aware_models():
     from navzoo.agents.diffusion.forecaster import DiffusionForecaster
 

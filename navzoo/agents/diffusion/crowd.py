@@ -36,6 +36,7 @@ from navzoo.agents.diffusion.guidance import (
     combine,
     map_collision_cost,
     path_cost,
+    smoothness_cost,
     target_cost,
 )
 from navzoo.agents.diffusion.model import TrajectoryDiffusion
@@ -140,6 +141,10 @@ class DiffusionCrowd:
         path_weight: weight of the A* path guidance (every plan step near the path point
             ``v_pref x t`` ahead, so plans go around walls at the person's pace; 0 = end point only).
             20 by ``scripts/crowd_closed_loop.py --path-weight 0,5,10,20`` (docs/crowd.md).
+        blend_s: seconds over which a replanned person's plan turns from the old plan into the new one.
+        smooth_weight: weight of a smoothness guidance cost (squared second differences of the plan,
+            from the last two history points); 0 = off. The ablation in docs/crowd.md ("Where the
+            roughness comes from") found no setting that smooths the walk without losing goals.
         k_neighbors, neighbor_radius: neighbours given to the model.
         seed: seed of the sampling noise (with the env's step count, so replays are exact).
         device: torch device of the model.
@@ -149,7 +154,7 @@ class DiffusionCrowd:
                  replan_s: float = 2.0, guidance_scale: float = 0.05, target_weight: float = 1.0,
                  agent_weight: float = 10.0, map_weight: float = 10.0, k_neighbors: int = 16,
                  neighbor_radius: float = 10.0, seed: int = 0, device: str = "cpu",
-                 path_weight: float = 20.0, blend_s: float = 1.2) -> None:
+                 path_weight: float = 20.0, blend_s: float = 1.2, smooth_weight: float = 0.0) -> None:
         if model is None or isinstance(model, (str, Path)):
             from navzoo.agents.diffusion.trainer import load_model
 
@@ -177,6 +182,9 @@ class DiffusionCrowd:
         self.device = device
         self.path_weight = float(path_weight)
         self.blend_s = float(blend_s)
+        if not smooth_weight >= 0:
+            raise ValueError(f"smooth_weight must be >= 0, got {smooth_weight!r}")
+        self.smooth_weight = float(smooth_weight)
         self.n = 0
 
     # ------------------------------------------------------------------ state
@@ -299,6 +307,9 @@ class DiffusionCrowd:
         dist = env.grid.distance_at(fdata.to_world(pts, local)).reshape(B, n_cells, n_cells)
         costs.append(map_collision_cost(torch.as_tensor(dist, dtype=torch.float32), MAP_EXTENT,
                                         radius=float(env.config.human_radius), weight=m_w))
+        if self.smooth_weight > 0:  # plans that continue the current velocity and turn gently
+            start = fdata.to_local(self.hist[people][:, -2:], local)
+            costs.append(smoothness_cost(torch.as_tensor(start, dtype=torch.float32), self.smooth_weight))
         guide = combine(*costs)
         g = torch.Generator().manual_seed(self.seed * 1_000_003 + int(env.steps))
         with torch.no_grad():

@@ -16,7 +16,7 @@ from torch.nn import functional as F
 
 Cost = Callable[[Tensor, Tensor], Tensor]
 
-__all__ = ["Cost", "agent_collision_cost", "combine", "map_collision_cost", "path_cost", "target_cost"]
+__all__ = ["Cost", "agent_collision_cost", "combine", "map_collision_cost", "path_cost", "smoothness_cost", "target_cost"]
 
 
 def target_cost(target: Tensor, weight: float = 1.0, step: int = -1, valid: Tensor | None = None) -> Cost:
@@ -42,6 +42,19 @@ def path_cost(points: Tensor, weight: float = 1.0, valid: Tensor | None = None) 
         if valid is not None:
             d2 = d2 * valid[index].float()
         return weight * d2
+
+    return cost
+
+
+def smoothness_cost(start: Tensor, weight: float = 1.0) -> Cost:
+    """Sum over steps of the squared second difference of positions (m²), the plan's acceleration
+    times dt², starting from each person's last two history points ``start (B, 2, 2)`` (agent frame,
+    older first), so that the plan also continues the person's current velocity."""
+
+    def cost(pos: Tensor, index: Tensor) -> Tensor:
+        p = torch.cat([start[index].to(pos.dtype), pos], dim=1)  # (N, 2 + H, 2)
+        acc = p[:, 2:] - 2.0 * p[:, 1:-1] + p[:, :-2]
+        return weight * (acc ** 2).sum(dim=(1, 2))
 
     return cost
 
