@@ -93,6 +93,10 @@ class NavConfig:
             number = that distance for walls and obstacles instead (m; 0 = walls only count for
             collisions). In a home or a store most of a shortest path runs within 0.9 m of a wall, where
             the paper's reward gives no progress term at all.
+        collision_reward: the reward on the step a robot's collision begins (the paper: -20, as the
+            goal's +20); a finite number <= 0.
+        proximity_scale: slope of the reward's proximity term, ``scale x (d_obs - 0.9)`` within 0.9 m
+            (the paper: 0.5; per metre, per step); a finite number >= 0.
         k_neighbors: people/robots in each observation (K).
         history: past steps per neighbour (T).
         sensor_range: neighbours farther than this are masked out (m).
@@ -145,6 +149,8 @@ class NavConfig:
     robot_subgoal: float | None = None
     robot_progress: Literal["euclidean", "geodesic"] = "euclidean"
     wall_proximity: float | None = None
+    collision_reward: float = -20.0
+    proximity_scale: float = 0.5
     k_neighbors: int = 6
     history: int = 8
     sensor_range: float = 6.0
@@ -227,6 +233,10 @@ class NavConfig:
         if self.wall_proximity is not None and (isinstance(self.wall_proximity, bool) or not (
                 _is_pos(self.wall_proximity) or self.wall_proximity == 0)):
             raise bad("wall_proximity", "None or a finite number >= 0 (m)")
+        if not (_is_num(self.collision_reward) and self.collision_reward <= 0):
+            raise bad("collision_reward", "a finite number <= 0")
+        if not (_is_num(self.proximity_scale) and self.proximity_scale >= 0):
+            raise bad("proximity_scale", "a finite number >= 0")
         if self.goal_tolerance is not None and not _is_pos(self.goal_tolerance):
             raise bad("goal_tolerance", "None or a finite number > 0")
         if self.max_episode_steps_override is not None and (
@@ -311,6 +321,10 @@ class NavConfig:
 
 def _is_int(v: Any) -> bool:
     return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_num(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def _is_pos(v: Any) -> bool:

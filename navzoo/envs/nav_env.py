@@ -88,7 +88,7 @@ class NavEnv(ParallelEnv):
     Robots: the paper's r_nav + r_omega (see :mod:`navzoo.envs.rewards`), each term in
     ``info[agent]["reward/<term>"]``. Pedestrians: the same r_nav with their own goal (no omega
     term); a pedestrian that reaches its goal gets +20 and a new goal, and a kinematic one gets the
-    collision term (-20) when a contact with a robot or a person begins (``human_contact_penalty``).
+    collision term (``collision_reward``, -20) when a contact with a robot or a person begins (``human_contact_penalty``).
 
     ## Starting state
     Sampled from the scene's spawn/goal regions or its protocol (circle/square crossing) by a seeded
@@ -157,7 +157,9 @@ class NavEnv(ParallelEnv):
         self._index = {a: i for i, a in enumerate(self.possible_agents)}
         self.agents: list[str] = []
         self.goal_tolerance = cfg.goal_tolerance if cfg.goal_tolerance is not None else cfg.robot.radius
-        self.reward_params = RewardParams(wall_proximity_distance=cfg.wall_proximity)
+        self.reward_params = RewardParams(wall_proximity_distance=cfg.wall_proximity,
+                                          collision_reward=float(cfg.collision_reward),
+                                          proximity_scale=float(cfg.proximity_scale))
 
         # Static world: grid, planners (one A* for robots and people, per radius), task sampler.
         self.grid = OccupancyGrid.from_scene(self.scene, resolution=cfg.grid_resolution)

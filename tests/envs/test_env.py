@@ -224,6 +224,28 @@ def test_reward_terms_match_paper():
     np.testing.assert_allclose(tot, [20, -20, -0.2 - 0.15, 1.6 - 0.2])
 
 
+def test_collision_reward_and_proximity_scale_are_configurable():
+    env = NavEnv(NavConfig(scene="corridor", n_humans=1, collision_reward=-50.0, proximity_scale=2.0))
+    env.reset(seed=0, options={
+        "robot_starts": [[4.0, 1.7]], "robot_goals": [[12.0, 1.7]], "robot_yaws": [0.0],
+        "human_starts": [[6.5, 1.7]], "human_goals": [[6.5, 1.7]],
+    })
+    infos = []
+    for _ in range(60):
+        _, rew, term, _, info = env.step({"robot_0": np.array([1.0, 0.0]), "human_0": np.zeros(2)})
+        infos.append(info["robot_0"])
+        if term.get("robot_0"):
+            break
+    assert infos[-1]["event"] == "collision_human" and infos[-1]["reward/collision"] == -50.0
+    near = [i["reward/proximity"] for i in infos[:-1] if i["reward/proximity"] < 0]
+    assert near and min(near) < -0.5  # within 0.9 m at slope 2 (the paper's 0.5 stays above -0.45)
+    env.close()
+    for field, value in (("collision_reward", 5.0), ("collision_reward", float("nan")), ("proximity_scale", -1.0),
+                         ("proximity_scale", True)):
+        with pytest.raises(ValueError, match=f"NavConfig.{field} must be a finite number"):
+            NavConfig(**{field: value})
+
+
 def test_config_validation_messages():
     with pytest.raises(ValueError, match="unknown NavConfig key.*'n_humanz'"):
         NavConfig.from_dict({"n_humanz": 3})
