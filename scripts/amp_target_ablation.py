@@ -3,10 +3,12 @@
 Runs :func:`navzoo.benchmark.pedestrians.follow_scene` (8 scenes, 3-15 people, social-force targets)
 once per configuration and scene, in parallel processes, and appends one JSON row per run to
 ``--out`` (rows already there are skipped, so an interrupted run resumes). A configuration is
-``NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE]`` and sets, in every worker,
+``NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN]]`` and sets, in every worker,
 ``navzoo.envs.amp_humans.PLAN_MARGIN`` (people and A* inflation), ``WALL_PLAN_MARGIN`` (walls in the
 social-force rollouts), ``WAYPOINT_LOOKAHEAD`` (0 = waypoints in strict order) and
-``TARGET_TURN_RATE`` (rad/s, the rollouts' heading-rate limit; 0 or left out = off).
+``TARGET_TURN_RATE`` (rad/s, the rollouts' heading-rate limit; 0 or left out = off) and, with
+FALLEN = 1, ``NavConfig.human_fallen_obstacles`` (people plan around fallen bodies; 0 or left out = off).
+``--scenes`` picks some of the 8 scenes (each keeps its people count).
 
     python scripts/amp_target_ablation.py --configs before:0.1:0.1:0,now:0.1:0:4 --seconds 200 \
         --workers 16 --out docs/results/amp_target_ablation.jsonl
@@ -24,11 +26,14 @@ from pathlib import Path
 
 def parse_config(text: str) -> dict:
     parts = text.split(":")
-    if len(parts) not in (4, 5):
-        raise ValueError(f"a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE], got {text!r}")
+    if len(parts) not in (4, 5, 6):
+        raise ValueError(f"a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN]], got {text!r}")
     name, plan, wall, ahead = parts[:4]
     cfg = {"name": name, "plan_margin": float(plan), "wall_margin": float(wall), "lookahead": int(ahead),
-           "turn_rate": float(parts[4]) if len(parts) == 5 else 0.0}
+           "turn_rate": float(parts[4]) if len(parts) >= 5 else 0.0,
+           "fallen_obstacles": len(parts) == 6 and parts[5].strip() == "1"}
+    if len(parts) == 6 and parts[5].strip() not in ("0", "1"):
+        raise ValueError(f"FALLEN must be 0 or 1, got {text!r}")
     if min(cfg["plan_margin"], cfg["wall_margin"], cfg["lookahead"], cfg["turn_rate"]) < 0:
         raise ValueError(f"margins, lookahead and turn rate must be >= 0, got {text!r}")
     return cfg
@@ -48,9 +53,10 @@ def _run(job: tuple[dict, str, int, float, int]) -> dict:
     ah.TARGET_TURN_RATE = cfg["turn_rate"]
     from navzoo.benchmark.pedestrians import follow_scene
 
-    row = follow_scene(scene, n, seconds, seed)
+    row = follow_scene(scene, n, seconds, seed, env_overrides={"human_fallen_obstacles": cfg["fallen_obstacles"]})
     row.pop("poses")
-    return {"config": cfg["name"], **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate")},
+    return {"config": cfg["name"],
+            **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles")},
             "seed": seed, **row}
 
 
@@ -75,6 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--configs", default="before:0.1:0.1:0,now:0.1:0:4")
     ap.add_argument("--seconds", type=float, default=200.0)
     ap.add_argument("--seeds", default="0")
+    ap.add_argument("--scenes", default=None, help="comma-separated subset of the 8 scenes (default: all)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default="amp_target_ablation.jsonl")
     ap.add_argument("--summary", metavar="JSONL", help="print the table of a result file and exit")
@@ -94,7 +101,11 @@ def main(argv: list[str] | None = None) -> int:
                 r = json.loads(line)
                 done.add((r["config"], r["scene"], r["seed"]))
     people = dict(zip(SCENES, people_per_scene(len(SCENES)), strict=True))
-    jobs = [(c, s, people[s], args.seconds, seed) for seed in seeds for s in SCENES for c in configs
+    scenes = SCENES if args.scenes is None else tuple(args.scenes.split(","))
+    unknown = sorted(set(scenes) - set(SCENES))
+    if unknown:
+        ap.error(f"unknown scenes {unknown}; choose from {list(SCENES)}")
+    jobs = [(c, s, people[s], args.seconds, seed) for seed in seeds for s in scenes for c in configs
             if (c["name"], s, seed) not in done]
     jobs.sort(key=lambda j: -j[2])  # crowded scenes first: they take longest
     print(f"{len(jobs)} runs ({len(done)} already in {out})", file=sys.stderr, flush=True)

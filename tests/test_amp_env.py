@@ -96,6 +96,35 @@ def test_pushed_pedestrian_falls_and_is_done():
     env.close()
 
 
+@pytest.mark.parametrize("obstacles", [True, False])
+def test_others_plan_around_a_fallen_body_when_asked(obstacles):
+    from navzoo.envs.fallen import path_passes
+
+    env = _raw(n_robots=0, n_humans=2, max_episode_steps_override=200, human_fallen_obstacles=obstacles)
+    # person 1 walks from x = 3 to x = 10 along y = 5, through where person 0 is pushed over
+    env.reset(seed=1, options={"human_starts": [[6.0, 5.0], [3.0, 5.0]], "human_goals": [[6.0, 5.0], [10.0, 5.0]]})
+    env.amp.bodies.push([0], np.array([[800.0, 0.0, 0.0]]), 0.3)
+    before = env.paths[1].copy()
+    zero = np.zeros(ACT_DIM)
+    for _ in range(60):
+        env.step({a: zero for a in env.agents})
+        if env.human_fallen[0]:
+            break
+    assert env.human_fallen[0] and not env.human_fallen[1]
+    if not obstacles:
+        np.testing.assert_array_equal(env.paths[1], before)
+        assert env._fallen_grid is None
+    else:
+        body = env._fallen_points
+        assert len(body) and path_passes(before, env.pos[1], body, 0.55)  # the old path ran through it
+        assert not path_passes(env.paths[1][env.wp_index[1]:], env.pos[1], body, 0.55)
+        assert np.allclose(env.paths[1][-1], [10.0, 5.0])
+        assert not env._fallen_grid.is_free(body[:1])[0] and env.grid.is_free(body[:1])[0]
+        # its target trajectory was rolled out again along the new path
+        assert env.amp.plan_t.max() == env.amp.t
+    env.close()
+
+
 def test_pedestrian_contact_flags_are_reported_and_consistent():
     """Each pedestrian's info says whether it touched the map, any agent, and a robot; a robot contact is
     also an agent contact."""

@@ -52,12 +52,12 @@ def people_per_scene(n_scenes: int, lo: int = 3, hi: int = 15) -> list[int]:
 
 
 def _make(scene: str, n: int, human_model: str, seconds: float, seed: int, policy_dir: str | None,
-          crowd_model: str = "sfm"):
+          crowd_model: str = "sfm", env_overrides: dict[str, Any] | None = None):
     from navzoo.envs.nav_env import NavEnv
     from navzoo.envs.wrappers import FrozenAgents
 
     env = NavEnv(scene=scene, n_robots=0, n_humans=n, human_model=human_model, dt=DT, crowd_model=crowd_model,
-                 time_limit=seconds)
+                 time_limit=seconds, **(env_overrides or {}))
     if human_model == "amp":
         from navzoo.agents.amp.pedestrian_policy import AmpPedestrianPolicy
 
@@ -117,10 +117,11 @@ def target_points(env) -> np.ndarray | None:
 
 def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, policy_dir: str | None = None,
                  pose_every: int = 1, max_poses: int = 20_000, crowd_model: str = "sfm",
-                 human_model: str = "amp") -> dict[str, Any]:
+                 human_model: str = "amp", env_overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """One scene of :func:`following`: trip outcomes, contact flags, path error sums and poses.
 
-    ``crowd_model`` makes the target trajectories (AMP) or drives the bodies (kinematic). Kinematic
+    ``crowd_model`` makes the target trajectories (AMP) or drives the bodies (kinematic);
+    ``env_overrides`` are further NavConfig fields (e.g. ``{"human_fallen_obstacles": True}``). Kinematic
     pedestrians never fall; their contacts are geometric (:func:`kinematic_contacts`) and their path
     error is measured against :func:`target_points` (none for rule-based crowds: ``err_n`` stays 0,
     ``path_error`` is False, and a trip that reaches its goal is a success).
@@ -128,7 +129,7 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
     t0 = time.time()
     if human_model not in ("amp", "kinematic"):
         raise ValueError(f"human_model must be 'amp' or 'kinematic', got {human_model!r}")
-    wrapped, env = _make(scene, n, human_model, seconds, seed, policy_dir, crowd_model)
+    wrapped, env = _make(scene, n, human_model, seconds, seed, policy_dir, crowd_model, env_overrides)
     amp = env.amp is not None
     body_ids = env.amp.ids if amp else env.humans.ids
     has_target = amp or env.diffusion is not None

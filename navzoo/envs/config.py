@@ -63,6 +63,9 @@ class NavConfig:
         human_body_contacts: also count PyBullet contacts between a robot and a humanoid's limbs
             as collisions (a walking humanoid's hands and feet reach up to ~0.1 m beyond a 0.3 m
             disc). Off = the disc model alone, as CrowdNav (the CrowdNav presets turn it off).
+        human_fallen_obstacles: physics (AMP) pedestrians that fall become obstacles in the other
+            pedestrians' A* paths, and the people whose path passes a fallen body plan around it
+            (:mod:`navzoo.envs.fallen`); off by default.
         human_contact_penalty: kinematic pedestrians (crowd or learning ones) get the collision
             reward (-20) on the step a contact begins: with a robot (the robot's swept collision test
             or PyBullet contact) or with another pedestrian (discs overlapping). They are not taken
@@ -137,6 +140,7 @@ class NavConfig:
     human_radius: float = 0.3
     human_body_contacts: bool = True
     human_contact_penalty: bool = True
+    human_fallen_obstacles: bool = False
     human_speed: tuple[float, float] = (1.0, 1.4)
     human_at_goal: Literal["new_goal", "stop"] = "new_goal"
     human_max_speed: float = 2.0
@@ -206,6 +210,8 @@ class NavConfig:
             raise bad("human_body_contacts", "a bool")
         if not isinstance(self.human_contact_penalty, bool):
             raise bad("human_contact_penalty", "a bool")
+        if not isinstance(self.human_fallen_obstacles, bool):
+            raise bad("human_fallen_obstacles", "a bool")
         if not _is_int(self.scan_rays) or self.scan_rays < 0:
             raise bad("scan_rays", "an integer >= 0 (0 = no range scan)")
         if not _is_pos(self.scan_range):

@@ -23,6 +23,9 @@ from navzoo.envs.amp_humans import PLAN_MARGIN as AMP_PLAN_MARGIN
 from navzoo.envs.amp_humans import WAYPOINT_LOOKAHEAD, AmpHumans, advance_waypoint
 from navzoo.envs.amp_humans import YIELD_HOLD_S as AMP_YIELD_HOLD_S
 from navzoo.envs.config import NavConfig
+from navzoo.envs.fallen import FALLEN_BODY_RADIUS, path_passes
+from navzoo.envs.fallen import footprint_points as fallen_footprint_points
+from navzoo.envs.fallen import stamp as stamp_fallen
 from navzoo.envs.rewards import TERMS, RewardParams, navigation_reward
 from navzoo.envs.subgoal import RobotGuide
 from navzoo.world.builder import GROUP_ROBOT, GROUP_STATIC, build_scene
@@ -326,6 +329,10 @@ class NavEnv(ParallelEnv):
         self.vel = np.zeros((N, 2))
         self.omega = np.zeros(N)
         self.cmd = np.zeros((R, 2))
+        self._fallen_grid: OccupancyGrid | None = None  # the grid with fallen bodies (human_fallen_obstacles)
+        self._fallen_planners: dict[float, AStarPlanner] = {}
+        self._fallen_points = np.zeros((0, 2))
+        self._fallen_replanned = False
         # Replayed people walk their recorded track: their "path" is the track's last point.
         self.paths: list[np.ndarray] = [
             self._plan(i, self.pos[i], self.goal[i]) if (rp is None or i < R) else self.goal[i][None].copy()
@@ -417,19 +424,29 @@ class NavEnv(ParallelEnv):
             self._planners[radius] = AStarPlanner(self.grid, radius)
         return self._planners[radius]
 
-    def _plan(self, i: int, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    def _fallen_planner(self, radius: float) -> AStarPlanner:
+        if radius not in self._fallen_planners:
+            self._fallen_planners[radius] = AStarPlanner(self._fallen_grid, radius)
+        return self._fallen_planners[radius]
+
+    def _plan(self, i: int, start: np.ndarray, goal: np.ndarray, fallback: bool = True) -> np.ndarray | None:
+        """Agent ``i``'s A* path from ``start`` to ``goal`` (pedestrians around fallen bodies when the
+        config asks for it); without a path, the goal alone, or None when ``fallback`` is False."""
         path = None
         clearance = self.config.path_clearance
         if self.config.human_model == "amp" and i >= self.n_robots:
             clearance += AMP_PLAN_MARGIN
-        bare = self._planner(float(self.radius[i]))
+        planner = self._fallen_planner if i >= self.n_robots and self._fallen_grid is not None else self._planner
+        bare = planner(float(self.radius[i]))
         if clearance > 0:
             padded = float(self.radius[i]) + clearance
-            path = self._planner(padded).plan(start, goal, spacing=self.config.path_spacing)
+            path = planner(padded).plan(start, goal, spacing=self.config.path_spacing)
             if path is None:  # a passage on the way is too narrow for the clearance: keep it where it fits
                 path = bare.plan_graded(start, goal, clearance, spacing=self.config.path_spacing)
         if path is None:
             path = bare.plan(start, goal, spacing=self.config.path_spacing)
+        if (path is None or len(path) == 0) and not fallback:
+            return None
         if path is None or len(path) == 0:
             # No grid path (e.g. explicit start/goal given inside an inflated area): walk straight.
             return np.asarray(goal, dtype=np.float64).reshape(1, 2)
@@ -524,7 +541,10 @@ class NavEnv(ParallelEnv):
             self.pos[hum], self.yaw[hum], self.vel[hum], self.omega[hum] = h_pos, h_yaw, h_vel, h_omega
             self.amp.fallen |= self.amp.bodies.fallen()
             self.human_map_contact, self.human_agent_contact, self.human_robot_contact = self.amp.contacts()
+            new_falls = np.flatnonzero(self.amp.fallen & ~self.human_fallen)
             self.human_fallen = self.amp.fallen.copy()
+            if cfg.human_fallen_obstacles and new_falls.size:
+                self._fallen_replanned = self._avoid_fallen(new_falls)
         r_pos, r_yaw, tilt = self.robots.read_state()
         nan_state = bool(~np.isfinite(r_pos[robot_alive]).all() or ~np.isfinite(r_yaw[robot_alive]).all())
         if not nan_state:
@@ -562,7 +582,8 @@ class NavEnv(ParallelEnv):
             )
         if self.amp is not None and hum.size:
             amp_terms = self.amp.task_reward()
-            self.amp.after_step(replan=bool(human_reached.any() or new_yields.any()))
+            self.amp.after_step(replan=bool(human_reached.any() or new_yields.any() or self._fallen_replanned))
+            self._fallen_replanned = False
         # After a re-target a pedestrian's distance jumps to its new goal: that step earns the goal
         # reward, not a progress penalty, so its previous distance is taken as the new one.
         d_prev = np.where(human_reached_mask(self.n_total, R, human_reached), self.d_goal, d_goal_prev)
@@ -837,6 +858,29 @@ class NavEnv(ParallelEnv):
         if yielding and self.turn_taking is not None:
             pref = self.turn_taking.apply(self.sim_time if t is None else t, pref)
         return pref
+
+    def _avoid_fallen(self, fallen: np.ndarray) -> bool:
+        """Stamp the bodies of the pedestrians ``fallen`` (indices among the pedestrians) into the
+        pedestrians' planning grid and plan again for the standing ones whose path passes them;
+        returns whether any path changed (:mod:`navzoo.envs.fallen`)."""
+        R = self.n_robots
+        s = self.amp.state()
+        pts = np.concatenate([fallen_footprint_points(s["root_pos"][j, :2], s["key_pos"][j, :, :2]) for j in fallen])
+        self._fallen_points = np.concatenate([self._fallen_points, pts])
+        self._fallen_grid = stamp_fallen(self._fallen_grid if self._fallen_grid is not None else self.grid, pts)
+        self._fallen_planners = {}
+        changed = False
+        for j in np.flatnonzero(~self.human_fallen & ~self.arrived[R:]):
+            i = R + j
+            near = float(self.radius[i]) + FALLEN_BODY_RADIUS + 0.1
+            if not path_passes(self.paths[i][self.wp_index[i]:], self.pos[i], pts, near):
+                continue
+            path = self._plan(i, self.pos[i], self.goal[i], fallback=False)
+            if path is not None:  # else no way around (it lies in the only door): keep the path and wait
+                self.paths[i] = path
+                self.wp_index[i] = 0
+                changed = True
+        return changed
 
     def _retarget_humans(self) -> np.ndarray:
         """Give pedestrians that reached their goal a new goal and path; returns who reached."""

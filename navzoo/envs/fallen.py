@@ -1,0 +1,72 @@
+"""Fallen pedestrians as obstacles in the other pedestrians' A* paths.
+
+A physics (AMP) pedestrian that falls stays on the floor for the rest of the episode. Its disc in the
+crowd model is where its root is, but the body lies up to a body length around it, and in a door
+it blocks the way. With ``NavConfig(human_fallen_obstacles=True)`` the env stamps every fallen body's
+footprint (its root and key bodies: head, hands, feet, and the lines from the root to them) into a
+copy of the occupancy grid, plans the pedestrians' paths on that grid from then on, and plans again
+right away for everyone whose remaining path passes the body. Where no path avoids the body (a
+single door it lies in), a person keeps its old path and waits, as before.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from navzoo.world.occupancy import OccupancyGrid
+
+FALLEN_BODY_RADIUS = 0.15  # m: half the thickness of a lying body, around its root-to-limb lines
+_SAMPLE_M = 0.05
+
+
+def footprint_points(root_xy: np.ndarray, key_xy: np.ndarray, step: float = _SAMPLE_M) -> np.ndarray:
+    """(M, 2) points along the lines from a lying body's root ``(2,)`` to each key body ``(K, 2)``,
+    ``step`` metres apart, root and key bodies included."""
+    root = np.asarray(root_xy, dtype=np.float64).reshape(2)
+    keys = np.asarray(key_xy, dtype=np.float64).reshape(-1, 2)
+    pts = [root[None]]
+    for k in keys:
+        n = max(int(np.ceil(np.linalg.norm(k - root) / step)), 1)
+        pts.append(root + np.linspace(0.0, 1.0, n + 1)[1:, None] * (k - root))
+    return np.concatenate(pts)
+
+
+def stamp(grid: OccupancyGrid, points: np.ndarray, radius: float = FALLEN_BODY_RADIUS) -> OccupancyGrid:
+    """A copy of ``grid`` with every cell whose centre is within ``radius`` of a point occupied."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    occ = np.array(grid.occ, copy=True)
+    h, w = occ.shape
+    res = grid.resolution
+    k = int(np.ceil(radius / res)) + 1
+    for rc in np.unique(grid.world_to_cell(pts), axis=0):
+        r0, r1 = max(rc[0] - k, 0), min(rc[0] + k + 1, h)
+        c0, c1 = max(rc[1] - k, 0), min(rc[1] + k + 1, w)
+        if r0 >= r1 or c0 >= c1:
+            continue
+        rr, cc = np.mgrid[r0:r1, c0:c1]
+        centres = grid.cell_to_world(np.stack([rr.ravel(), cc.ravel()], axis=1))
+        d = np.min(np.linalg.norm(centres[:, None, :] - pts[None, :, :], axis=2), axis=1)
+        near = (d <= radius).reshape(rr.shape)
+        occ[r0:r1, c0:c1] |= near
+    return OccupancyGrid(occ, grid.resolution, grid.origin)
+
+
+def path_passes(path: np.ndarray, start: np.ndarray, points: np.ndarray, distance: float,
+                step: float = 0.1) -> bool:
+    """Whether the polyline from ``start`` through ``path (P, 2)`` comes within ``distance`` of any of
+    ``points (M, 2)`` (sampled every ``step`` metres)."""
+    line = np.concatenate([np.asarray(start, dtype=np.float64).reshape(1, 2),
+                           np.asarray(path, dtype=np.float64).reshape(-1, 2)])
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if len(pts) == 0:
+        return False
+    samples = [line[:1]]
+    for a, b in zip(line[:-1], line[1:], strict=True):
+        n = max(int(np.ceil(np.linalg.norm(b - a) / step)), 1)
+        samples.append(a + np.linspace(0.0, 1.0, n + 1)[1:, None] * (b - a))
+    s = np.concatenate(samples)
+    lo, hi = pts.min(axis=0) - distance, pts.max(axis=0) + distance  # cheap box test first
+    s = s[np.all((s >= lo) & (s <= hi), axis=1)]
+    if len(s) == 0:
+        return False
+    return bool(np.min(np.linalg.norm(s[:, None, :] - pts[None, :, :], axis=2)) < distance)
