@@ -7,7 +7,9 @@ once per configuration and scene, in parallel processes, and appends one JSON ro
 ``navzoo.envs.amp_humans.PLAN_MARGIN`` (people and A* inflation), ``WALL_PLAN_MARGIN`` (walls in the
 social-force rollouts), ``WAYPOINT_LOOKAHEAD`` (0 = waypoints in strict order) and
 ``TARGET_TURN_RATE`` (rad/s, the rollouts' heading-rate limit; 0 or left out = off) and, with
-FALLEN = 1, ``NavConfig.human_fallen_obstacles`` (people plan around fallen bodies; 0 or left out = off).
+FALLEN = 1, ``NavConfig.human_fallen_obstacles`` (people plan around fallen bodies; 0 or left out = off);
+FALLEN may instead name boolean NavConfig flags to turn on, joined by ``+`` (e.g.
+``human_door_entries+human_fallen_obstacles``).
 ``--scenes`` picks some of the 8 scenes (each keeps its people count).
 
     python scripts/amp_target_ablation.py --configs before:0.1:0.1:0,now:0.1:0:4 --seconds 200 \
@@ -32,8 +34,14 @@ def parse_config(text: str) -> dict:
     cfg = {"name": name, "plan_margin": float(plan), "wall_margin": float(wall), "lookahead": int(ahead),
            "turn_rate": float(parts[4]) if len(parts) >= 5 else 0.0,
            "fallen_obstacles": len(parts) == 6 and parts[5].strip() == "1"}
-    if len(parts) == 6 and parts[5].strip() not in ("0", "1"):
-        raise ValueError(f"FALLEN must be 0 or 1, got {text!r}")
+    flags = parts[5].strip() if len(parts) == 6 else "0"
+    cfg["env_flags"] = [] if flags == "0" else ["human_fallen_obstacles"] if flags == "1" else flags.split("+")
+    from navzoo.envs.config import NavConfig
+
+    for flag in cfg["env_flags"]:
+        if not isinstance(getattr(NavConfig(), flag, None), bool):
+            raise ValueError(f"{flag!r} is not a boolean NavConfig field, in {text!r}")
+    cfg["fallen_obstacles"] = "human_fallen_obstacles" in cfg["env_flags"]
     if min(cfg["plan_margin"], cfg["wall_margin"], cfg["lookahead"], cfg["turn_rate"]) < 0:
         raise ValueError(f"margins, lookahead and turn rate must be >= 0, got {text!r}")
     return cfg
@@ -53,10 +61,10 @@ def _run(job: tuple[dict, str, int, float, int]) -> dict:
     ah.TARGET_TURN_RATE = cfg["turn_rate"]
     from navzoo.benchmark.pedestrians import follow_scene
 
-    row = follow_scene(scene, n, seconds, seed, env_overrides={"human_fallen_obstacles": cfg["fallen_obstacles"]})
+    row = follow_scene(scene, n, seconds, seed, env_overrides=dict.fromkeys(cfg["env_flags"], True))
     row.pop("poses")
     return {"config": cfg["name"],
-            **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles")},
+            **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles", "env_flags")},
             "seed": seed, **row}
 
 

@@ -66,6 +66,9 @@ class NavConfig:
         human_fallen_obstacles: physics (AMP) pedestrians that fall become obstacles in the other
             pedestrians' A* paths, and the people whose path passes a fallen body plan around it
             (:mod:`navzoo.envs.fallen`); off by default.
+        human_door_entries: physics (AMP) pedestrians' A* paths cross each door on its axis, from an
+            entry point 0.7 m before it to an exit point 0.7 m after it (:mod:`navzoo.envs.doors`);
+            off by default.
         human_contact_penalty: kinematic pedestrians (crowd or learning ones) get the collision
             reward (-20) on the step a contact begins: with a robot (the robot's swept collision test
             or PyBullet contact) or with another pedestrian (discs overlapping). They are not taken
@@ -141,6 +144,7 @@ class NavConfig:
     human_body_contacts: bool = True
     human_contact_penalty: bool = True
     human_fallen_obstacles: bool = False
+    human_door_entries: bool = False
     human_speed: tuple[float, float] = (1.0, 1.4)
     human_at_goal: Literal["new_goal", "stop"] = "new_goal"
     human_max_speed: float = 2.0
@@ -212,6 +216,8 @@ class NavConfig:
             raise bad("human_contact_penalty", "a bool")
         if not isinstance(self.human_fallen_obstacles, bool):
             raise bad("human_fallen_obstacles", "a bool")
+        if not isinstance(self.human_door_entries, bool):
+            raise bad("human_door_entries", "a bool")
         if not _is_int(self.scan_rays) or self.scan_rays < 0:
             raise bad("scan_rays", "an integer >= 0 (0 = no range scan)")
         if not _is_pos(self.scan_range):

@@ -23,6 +23,7 @@ from navzoo.envs.amp_humans import PLAN_MARGIN as AMP_PLAN_MARGIN
 from navzoo.envs.amp_humans import WAYPOINT_LOOKAHEAD, AmpHumans, advance_waypoint
 from navzoo.envs.amp_humans import YIELD_HOLD_S as AMP_YIELD_HOLD_S
 from navzoo.envs.config import NavConfig
+from navzoo.envs.doors import door_entries
 from navzoo.envs.fallen import FALLEN_BODY_RADIUS, path_passes
 from navzoo.envs.fallen import footprint_points as fallen_footprint_points
 from navzoo.envs.fallen import stamp as stamp_fallen
@@ -447,6 +448,10 @@ class NavEnv(ParallelEnv):
             path = bare.plan(start, goal, spacing=self.config.path_spacing)
         if (path is None or len(path) == 0) and not fallback:
             return None
+        if path is not None and len(path) and self.config.human_door_entries and self.config.human_model == "amp" \
+                and i >= self.n_robots:
+            path = door_entries(path, start, self._fallen_grid if self._fallen_grid is not None else self.grid,
+                                float(self.radius[i]))
         if path is None or len(path) == 0:
             # No grid path (e.g. explicit start/goal given inside an inflated area): walk straight.
             return np.asarray(goal, dtype=np.float64).reshape(1, 2)

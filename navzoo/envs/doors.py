@@ -1,0 +1,108 @@
+"""Door entries: A* paths that cross a door on its axis.
+
+An A* path through a door may approach it at a slant. A walking body that enters a door slantwise
+touches a jamb, and the social-force rollout of its target is held back by the jambs (docs/pedestrians.md,
+"Door jambs"). :func:`door_entries` finds each short narrow passage along a path (a door, not a
+corridor), estimates the door's axis from the jambs, and replaces the path's points near the door by
+an entry point, the door's centre and an exit point on that axis.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from navzoo.world.occupancy import OccupancyGrid
+
+DOOR_HALF_WIDTH = 0.6  # m: passages whose clearance stays below this are door candidates (doors <= 1.2 m)
+DOOR_MAX_LENGTH = 2.0  # m: a narrow stretch longer than this is a corridor, left alone
+DOOR_REACH = 0.7  # m: entry and exit points this far from the door's centre, on its axis
+_STEP = 0.05
+
+
+def _densify(line: np.ndarray, step: float) -> np.ndarray:
+    """Points every ``step`` m (at most) along a polyline."""
+    pts = [line[:1]]
+    for a, b in zip(line[:-1], line[1:], strict=True):
+        n = max(int(np.ceil(np.linalg.norm(b - a) / step)), 1)
+        pts.append(a + np.linspace(0.0, 1.0, n + 1)[1:, None] * (b - a))
+    return np.concatenate(pts)
+
+
+def _nearest_segment(line: np.ndarray, p: np.ndarray) -> int:
+    """Index i of the segment line[i] -> line[i + 1] nearest to ``p``."""
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0.0, 1.0)
+    return int(np.argmin(np.linalg.norm(a + t[:, None] * ab - p, axis=1)))
+
+
+def door_axis(grid: OccupancyGrid, centre: np.ndarray, clearance: float) -> np.ndarray | None:
+    """Unit vector across the door whose narrowest point is ``centre`` (perpendicular to the line of
+    the jamb cells within ``clearance`` + 0.2 m), or None when no jambs on two sides are found."""
+    res = grid.resolution
+    k = int(np.ceil((clearance + 0.2) / res)) + 1
+    rc = grid.world_to_cell(centre)
+    h, w = grid.occ.shape
+    r0, r1, c0, c1 = max(rc[0] - k, 0), min(rc[0] + k + 1, h), max(rc[1] - k, 0), min(rc[1] + k + 1, w)
+    cells = np.argwhere(grid.occ[r0:r1, c0:c1]) + [r0, c0]
+    if len(cells) < 4:
+        return None
+    pts = grid.cell_to_world(cells)
+    pts = pts[np.linalg.norm(pts - centre, axis=1) <= clearance + 0.2]
+    if len(pts) < 4:
+        return None
+    rel = pts - centre
+    _, _, vt = np.linalg.svd(rel - rel.mean(axis=0), full_matrices=False)
+    wall = vt[0]  # the jambs lie along the wall line
+    side = rel @ wall
+    if side.min() > -clearance * 0.5 or side.max() < clearance * 0.5:  # jambs on both sides of the centre
+        return None
+    return np.array([-wall[1], wall[0]])
+
+
+def door_entries(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, radius: float,
+                 half_width: float = DOOR_HALF_WIDTH, max_length: float = DOOR_MAX_LENGTH,
+                 reach: float = DOOR_REACH) -> np.ndarray:
+    """``path`` (K, 2), walked from ``start``, with its doors crossed on their axes.
+
+    A door is a stretch of the path no longer than ``max_length`` where the clearance (distance to the
+    nearest occupied cell) stays below ``half_width``. Its narrowest point is the centre; the axis is
+    perpendicular to the jambs (:func:`door_axis`). The path points within ``reach`` + 0.25 m of the
+    centre are replaced by ``centre -/+ reach * axis`` around the centre, when both new points keep
+    ``radius`` from every wall and the door is not at either end of the path; other doors are left.
+    """
+    path = np.asarray(path, dtype=np.float64).reshape(-1, 2)
+    line = np.concatenate([np.asarray(start, dtype=np.float64).reshape(1, 2), path])
+    if len(line) < 2:
+        return path
+    pts = _densify(line, _STEP)
+    d = grid.distance_at(pts)
+    narrow = d < half_width
+    out = path
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], narrow.astype(int), [0]])))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):  # narrow runs pts[a:b]
+        if (b - a) * _STEP > max_length:
+            continue
+        m = a + int(np.argmin(d[a:b]))
+        centre = pts[m]
+        if np.linalg.norm(centre - line[0]) < reach + 0.25 or np.linalg.norm(centre - line[-1]) < reach + 0.25:
+            continue
+        axis = door_axis(grid, centre, float(d[m]))
+        if axis is None:
+            continue
+        heading = pts[min(m + 4, len(pts) - 1)] - pts[max(m - 4, 0)]
+        if heading @ axis < 0:
+            axis = -axis
+        entry, exit_ = centre - reach * axis, centre + reach * axis
+        probe = np.linspace(0.0, 1.0, 15)[:, None]
+        across = np.concatenate([entry + probe * (centre - entry), centre + probe * (exit_ - centre)])
+        if grid.distance_at(across).min() < min(radius, float(d[m])) - 1e-9 or \
+                grid.distance_at(np.stack([entry, exit_])).min() < radius:
+            continue
+        keep = np.linalg.norm(out - centre, axis=1) >= reach + 0.25
+        if not keep[-1]:  # the goal itself is near the door: leave it
+            continue
+        i = _nearest_segment(np.concatenate([line[:1], out]), centre)  # the door lies after out[i - 1]
+        idx = np.arange(len(out))
+        out = np.concatenate([out[keep & (idx < i)], entry[None], centre[None], exit_[None], out[keep & (idx >= i)]])
+    return out
