@@ -12,20 +12,12 @@ from __future__ import annotations
 import numpy as np
 
 from navzoo.world.occupancy import OccupancyGrid
+from navzoo.world.planner import resample_polyline
 
 DOOR_HALF_WIDTH = 0.6  # m: passages whose clearance stays below this are door candidates (doors <= 1.2 m)
 DOOR_MAX_LENGTH = 2.0  # m: a narrow stretch longer than this is a corridor, left alone
 DOOR_REACH = 0.7  # m: entry and exit points this far from the door's centre, on its axis
 _STEP = 0.05
-
-
-def _densify(line: np.ndarray, step: float) -> np.ndarray:
-    """Points every ``step`` m (at most) along a polyline."""
-    pts = [line[:1]]
-    for a, b in zip(line[:-1], line[1:], strict=True):
-        n = max(int(np.ceil(np.linalg.norm(b - a) / step)), 1)
-        pts.append(a + np.linspace(0.0, 1.0, n + 1)[1:, None] * (b - a))
-    return np.concatenate(pts)
 
 
 def _nearest_segment(line: np.ndarray, p: np.ndarray) -> int:
@@ -75,7 +67,7 @@ def door_entries(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, radiu
     line = np.concatenate([np.asarray(start, dtype=np.float64).reshape(1, 2), path])
     if len(line) < 2:
         return path
-    pts = _densify(line, _STEP)
+    pts = resample_polyline(line, _STEP)
     d = grid.distance_at(pts)
     narrow = d < half_width
     out = path

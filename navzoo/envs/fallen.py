@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from navzoo.world.occupancy import OccupancyGrid
+from navzoo.world.planner import resample_polyline
 
 FALLEN_BODY_RADIUS = 0.15  # m: half the thickness of a lying body, around its root-to-limb lines
 _SAMPLE_M = 0.05
@@ -24,11 +25,7 @@ def footprint_points(root_xy: np.ndarray, key_xy: np.ndarray, step: float = _SAM
     ``step`` metres apart, root and key bodies included."""
     root = np.asarray(root_xy, dtype=np.float64).reshape(2)
     keys = np.asarray(key_xy, dtype=np.float64).reshape(-1, 2)
-    pts = [root[None]]
-    for k in keys:
-        n = max(int(np.ceil(np.linalg.norm(k - root) / step)), 1)
-        pts.append(root + np.linspace(0.0, 1.0, n + 1)[1:, None] * (k - root))
-    return np.concatenate(pts)
+    return np.concatenate([root[None]] + [resample_polyline(np.stack([root, k]), step)[1:] for k in keys])
 
 
 def stamp(grid: OccupancyGrid, points: np.ndarray, radius: float = FALLEN_BODY_RADIUS) -> OccupancyGrid:
@@ -60,11 +57,7 @@ def path_passes(path: np.ndarray, start: np.ndarray, points: np.ndarray, distanc
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if len(pts) == 0:
         return False
-    samples = [line[:1]]
-    for a, b in zip(line[:-1], line[1:], strict=True):
-        n = max(int(np.ceil(np.linalg.norm(b - a) / step)), 1)
-        samples.append(a + np.linspace(0.0, 1.0, n + 1)[1:, None] * (b - a))
-    s = np.concatenate(samples)
+    s = resample_polyline(line, step)
     lo, hi = pts.min(axis=0) - distance, pts.max(axis=0) + distance  # cheap box test first
     s = s[np.all((s >= lo) & (s <= hi), axis=1)]
     if len(s) == 0:

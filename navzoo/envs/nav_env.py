@@ -437,7 +437,8 @@ class NavEnv(ParallelEnv):
         clearance = self.config.path_clearance
         if self.config.human_model == "amp" and i >= self.n_robots:
             clearance += AMP_PLAN_MARGIN
-        planner = self._fallen_planner if i >= self.n_robots and self._fallen_grid is not None else self._planner
+        fallen = i >= self.n_robots and self._fallen_grid is not None  # people plan around fallen bodies
+        planner = self._fallen_planner if fallen else self._planner
         bare = planner(float(self.radius[i]))
         if clearance > 0:
             padded = float(self.radius[i]) + clearance
@@ -450,8 +451,7 @@ class NavEnv(ParallelEnv):
             return None
         if path is not None and len(path) and self.config.human_door_entries and self.config.human_model == "amp" \
                 and i >= self.n_robots:
-            path = door_entries(path, start, self._fallen_grid if self._fallen_grid is not None else self.grid,
-                                float(self.radius[i]))
+            path = door_entries(path, start, self._fallen_grid if fallen else self.grid, float(self.radius[i]))
         if path is None or len(path) == 0:
             # No grid path (e.g. explicit start/goal given inside an inflated area): walk straight.
             return np.asarray(goal, dtype=np.float64).reshape(1, 2)

@@ -294,7 +294,7 @@ class AStarPlanner:
         if raw is None:
             return None
         corners = self._shortcut(raw)
-        return _resample(corners, float(spacing))
+        return resample_polyline(corners, float(spacing))
 
     # ------------------------------------------------------------------ clearance-graded planning
 
@@ -365,7 +365,7 @@ class AStarPlanner:
             return self.penalty_along(raw[i], raw[j], clearance) <= float(pt_pen[i:j + 1].max()) + 0.1
 
         corners = self._shortcut(raw, visible)
-        return _resample(corners, float(spacing))
+        return resample_polyline(corners, float(spacing))
 
     def path_length(self, path: ArrayLike | None) -> float:
         """Length of a polyline (``inf`` for None)."""
@@ -428,7 +428,7 @@ class AStarPlanner:
         return self._graph
 
 
-def _resample(corners: np.ndarray, spacing: float) -> np.ndarray:
+def resample_polyline(corners: np.ndarray, spacing: float) -> np.ndarray:
     """Split each segment of the polyline into equal pieces no longer than ``spacing``."""
     out = [corners[:1]]
     for a, b in zip(corners[:-1], corners[1:], strict=True):
