@@ -8,7 +8,9 @@ Kinematic pedestrians of the diffusion crowd (no robot), seed 0, the realism pro
 variant sets attributes of the env's ``DiffusionCrowd`` (``guidance_scale``, ``replan_s``,
 ``blend_s``, ``path_weight``, ``smooth_weight``, ``n_samples``, ...), the guidance weights
 ``target_weight``, ``agent_weight``, ``map_weight``, and ``lookahead``, the seconds ahead on the plan that
-the preferred velocity aims at (``preferred_velocities(lookahead=)``). Prints, per variant, the mean
+the preferred velocity aims at (``preferred_velocities(lookahead=)``). Two probes of the model's inputs:
+``history_fit=DEG`` gives the model least-squares polynomial fits of degree DEG to the 8-point histories
+(its own and its neighbours', the last point kept exact), ``no_map=1`` withholds the occupancy crop. Prints, per variant, the mean
 walked speed, acceleration and jerk, the mean acceleration of the plans themselves (every plan made,
 at its 0.4 s points), goals reached and the overlap share (centres closer than 0.4 m).
 """
@@ -20,6 +22,7 @@ import json
 import time
 
 import numpy as np
+import torch
 
 from navzoo.agents.crowd import CrowdPolicy
 from navzoo.benchmark.crowd_eval import STEP, collision_share, track_kinematics
@@ -39,11 +42,40 @@ def parse_variant(text: str) -> dict[str, float]:
     return out
 
 
+def fit_histories(h: np.ndarray, deg: int) -> np.ndarray:
+    """Least-squares polynomial fit of degree ``deg`` over the time axis (-2) of ``(..., T, 2)``
+    histories, shifted so that the last point stays where it was."""
+    t = np.arange(h.shape[-2], dtype=float)
+    vander = np.vander(t, deg + 1)
+    fit = np.einsum("ts,...sd->...td", vander @ np.linalg.pinv(vander), h)
+    return fit + (h[..., -1:, :] - fit[..., -1:, :])
+
+
 def run(scene: str, n: int, seconds: float, settings: dict[str, float], seed: int = 0) -> dict:
     env = NavEnv(scene=scene, n_robots=0, n_humans=n, crowd_model="diffusion", time_limit=seconds)
     crowd = env.diffusion
     settings = dict(settings)
     lookahead = settings.pop("lookahead", None)
+    history_fit = settings.pop("history_fit", None)
+    if history_fit is not None:
+        world_batch = crowd._world_batch
+
+        def fitted_batch(e, people, deg=int(history_fit)):
+            out = world_batch(e, people)
+            out["hist"] = fit_histories(out["hist"], deg)
+            out["neigh"] = fit_histories(out["neigh"], deg) * out["neigh_mask"][..., None]
+            return out
+
+        crowd._world_batch = fitted_batch
+    if settings.pop("no_map", 0):
+        sample = crowd.model.sample
+
+        def sample_without_map(batch, *a, **k):
+            if "has_map" in batch:
+                batch = {**batch, "has_map": torch.zeros_like(batch["has_map"])}
+            return sample(batch, *a, **k)
+
+        crowd.model.sample = sample_without_map
     names = ("target_weight", "agent_weight", "map_weight")  # the guidance weights, kept as one tuple
     crowd.weights = tuple(settings.pop(k, w) for k, w in zip(names, crowd.weights, strict=True))
     for key, value in settings.items():
