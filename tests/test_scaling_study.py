@@ -112,6 +112,28 @@ def test_parallel_study_and_plots(tmp_path, runtime_rows):
     assert png.stat().st_size > 1000 and png.read_bytes()[:4] == PNG_MAGIC
 
 
+def test_batch_sizes_capped_to_the_same_run_train_once(tmp_path, monkeypatch, capsys):
+    import navzoo.agents.scaling_study as study
+
+    trained = []
+    real = study._train_quiet
+    monkeypatch.setattr(study, "_train_quiet", lambda targs: trained.append(targs.batch_size) or real(targs))
+    out = tmp_path / "par.jsonl"
+    kw = dict(workers=0, model=TINY, n_steps=16, n_epochs=1, out=out, resume=True)
+    # R = 1: a rollout of 16 steps caps both 64 and 512 at 16, so they are one run
+    first, copy = parallel_training([1], [64, 512], 32, "home", "cpu", **kw)
+    assert trained == [16]
+    assert first["batch_size"] == copy["batch_size"] == 16 and "same_run_as_batch_size_requested" not in first
+    assert copy["batch_size_requested"] == 512 and copy["same_run_as_batch_size_requested"] == 64
+    assert copy["iteration_s_all"] == first["iteration_s_all"] and copy["ep_rew_mean"] == first["ep_rew_mean"]
+    assert "measured once" in copy["note"] and "not trained again" in capsys.readouterr().err
+    # resumed with one more capped size: copied from the file, still no training
+    (more,) = parallel_training([1], [64, 512, 1024], 32, "home", "cpu", **kw)
+    assert trained == [16] and more["batch_size_requested"] == 1024
+    assert more["same_run_as_batch_size_requested"] == 64
+    assert [r["batch_size_requested"] for r in read_jsonl(out)] == [64, 512, 1024]
+
+
 def test_parallel_run_cut_off_continues_from_its_checkpoint(tmp_path, capsys):
     runs, out = tmp_path / "runs", tmp_path / "par.jsonl"
     kw = dict(workers=0, model=TINY, n_steps=16, n_epochs=1, out=out, resume=True, runs_dir=runs)

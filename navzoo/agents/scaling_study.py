@@ -674,7 +674,15 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
     dev = resolve_device(device)
     model = model or ModelSize()
     _, peds = agents_per_env(scene_id, n_robots=1)
-    done = {_key(r, PARALLEL_KEY) for r in read_jsonl(out)} if resume and out is not None else set()
+    earlier = read_jsonl(out) if resume and out is not None else []
+    done = {_key(r, PARALLEL_KEY) for r in earlier}
+    # A requested batch that the rollout cap turns into the batch of another requested size is the same
+    # training run (same seed, same settings): it is measured once, and its row is written again for the
+    # other size, marked with ``same_run_as_batch_size_requested``.
+    measured: dict[tuple, dict[str, Any]] = {}
+    for row in earlier:
+        if row.get("study") == "parallel" and "batch_size" in row and "same_run_as_batch_size_requested" not in row:
+            measured.setdefault(_run_key(row), row)
     rows: list[dict[str, Any]] = []
     for r in rs:
         w = _effective_workers(workers, r)
@@ -685,6 +693,17 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
                 continue
             rollout = n_steps * r
             batch = min(b, rollout)
+            same = measured.get((r, batch, int(sim_steps), n_steps, n_epochs, scene_id, dev, w))
+            if same is not None:
+                row = {**same, "batch_size_requested": b,
+                       "same_run_as_batch_size_requested": same["batch_size_requested"],
+                       "note": same["note"] + f"; the same run as batch {same['batch_size_requested']} (both capped "
+                                              f"at {batch}), measured once"}
+                print(f"scaling_study: robots={r} batch={b} is capped at {batch}, the same run as batch "
+                      f"{same['batch_size_requested']}: row copied, not trained again", file=sys.stderr)
+                _emit(row, out, echo)
+                rows.append(row)
+                continue
             info = machine_info()
             with contextlib.ExitStack() as stack:
                 if runs_dir is None:
@@ -745,7 +764,14 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
             }
             _emit(row, out, echo)
             rows.append(row)
+            measured.setdefault(_run_key(row), row)
     return rows
+
+
+def _run_key(row: Mapping[str, Any]) -> tuple:
+    """What makes two parallel-study rows the same training run: the key with the effective batch size."""
+    return (row["robots"], row["batch_size"], row["sim_steps"], row["n_steps"], row["n_epochs"], row["scene"],
+            row["device"], row["workers"])
 
 
 # ---------------------------------------------------------------------------------------------
