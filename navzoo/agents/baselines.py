@@ -327,8 +327,14 @@ def learned_policy_dir(name: str) -> Path:
     return Path(os.environ[var]) if os.environ.get(var) else _POLICIES_DIR / folder
 
 
+#: Suffix of a learned policy's name that makes it act with sampled actions instead of the mean action
+#: (``transformer-ppo-sampled``); in the benchmark the sampling is seeded per episode.
+SAMPLED_SUFFIX = "-sampled"
+
+
 def register_learned_policy(name: str, model_dir: str | Path | None = None) -> None:
-    """Register ``name`` (a key of :data:`LEARNED_POLICIES`) with a factory that loads its exported weights.
+    """Register ``name`` (a key of :data:`LEARNED_POLICIES`) with a factory that loads its exported weights,
+    and ``name + "-sampled"``, the same weights acting with actions sampled from the policy's distribution.
 
     The weights are read when the policy is made (``make_policy(name, deterministic=..., model_dir=...)``)
     from ``model_dir``, else :func:`learned_policy_dir`; so registering never fails, and making it
@@ -337,14 +343,20 @@ def register_learned_policy(name: str, model_dir: str | Path | None = None) -> N
     """
     default_dir = model_dir
 
-    def factory(model_dir: str | Path | None = None, deterministic: bool = True, device: str = "cpu") -> Policy:
-        from navzoo.agents.robot_train import load_policy  # torch + SB3 only when a learned policy is made
+    def make_factory(label: str, mean_action: bool) -> Callable[..., Policy]:
+        def factory(model_dir: str | Path | None = None, deterministic: bool = mean_action,
+                    device: str = "cpu") -> Policy:
+            # torch + SB3 only when a learned policy is made
+            from navzoo.agents.robot_train import load_policy
 
-        where = model_dir if model_dir is not None else default_dir
-        return load_policy(where if where is not None else learned_policy_dir(name),
-                           deterministic=deterministic, device=device, name=name)
+            where = model_dir if model_dir is not None else default_dir
+            return load_policy(where if where is not None else learned_policy_dir(name),
+                               deterministic=deterministic, device=device, name=label)
 
-    register_policy(name, factory, overwrite=True)
+        return factory
+
+    register_policy(name, make_factory(name, True), overwrite=True)
+    register_policy(name + SAMPLED_SUFFIX, make_factory(name + SAMPLED_SUFFIX, False), overwrite=True)
 
 
 def register_learned_policies() -> list[str]:

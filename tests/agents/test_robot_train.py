@@ -236,6 +236,20 @@ def test_register_transformer_ppo(tmp_path, monkeypatch):
     obs, _ = env.reset(seed=0)
     act = policy.act(obs, env.unwrapped)["robot_0"]
     assert act.shape == (2,) and np.isfinite(act).all()
+    np.testing.assert_array_equal(policy.act(obs, env.unwrapped)["robot_0"], act)  # the mean action
+    # the "-sampled" variant: the same weights, actions drawn from the policy (seeded through torch)
+    sampled = baselines.make_policy("transformer-ppo-sampled")
+    torch.manual_seed(0)
+    first = sampled.act(obs, env.unwrapped)["robot_0"]
+    second = sampled.act(obs, env.unwrapped)["robot_0"]
+    torch.manual_seed(0)
+    np.testing.assert_array_equal(sampled.act(obs, env.unwrapped)["robot_0"], first)
+    assert not np.allclose(first, second) and not np.allclose(first, act)
+    assert first.shape == (2,) and np.all(np.abs(first) <= 1.0)
+    from navzoo.benchmark.runner import method_kinematics
+
+    assert method_kinematics("transformer-ppo-crowdnav-diffdrive-sampled") == "diff_drive"
+    assert method_kinematics("transformer-ppo-sampled") is None
 
 
 @pytest.mark.parametrize("argv, message", [
