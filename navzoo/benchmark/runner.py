@@ -379,7 +379,9 @@ def level_label(density: float | None = None, humans: int | None = None) -> str:
 def method_kinematics(method: str) -> str | None:
     """The robot kinematics a method's name asks for (``-holonomic`` / ``-diffdrive`` suffix, before a
     learned policy's ``-sampled``), else None."""
-    key = method.strip().lower().replace("_", "-").removesuffix("-sampled")
+    from navzoo.agents.baselines import SAMPLED_SUFFIX
+
+    key = method.strip().lower().replace("_", "-").removesuffix(SAMPLED_SUFFIX)
     if key.endswith("-holonomic"):
         return "holonomic"
     if key.endswith("-diffdrive") or key.endswith("-diff-drive"):
