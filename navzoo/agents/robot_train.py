@@ -67,6 +67,7 @@ __all__ = [
     "latest_checkpoint",
     "load_policy",
     "check_resume",
+    "copy_crowds",
     "main",
     "make_mixed_vec_env",
     "parse_scenes",
@@ -190,6 +191,7 @@ def check_crowd_policy(spec: str) -> None:
 
 def make_mixed_vec_env(env_ids: Sequence[str] = TRAIN_SCENES, n_envs: int = 1, seed: int | None = 0,
                        num_cpus: int = 0, robots_per_env: int = 1, crowd_policy: str | None = None,
+                       densities: Sequence[float] | None = None, max_humans: int | None = None,
                        **overrides: Any) -> VecEnv:
     """An SB3 ``VecEnv`` mixing several navzoo scenes with the same spaces (flat observations).
 
@@ -205,10 +207,15 @@ def make_mixed_vec_env(env_ids: Sequence[str] = TRAIN_SCENES, n_envs: int = 1, s
         robots_per_env: robots per copy (``n_robots``).
         crowd_policy: ``"rllib:PATH"``: the pedestrians are a crowd trained with RLlib (``navzoo train
             joint``), frozen, instead of the scene's crowd model; None: the crowd model.
+        densities: crowd densities (people per m² of each scene's crowd area), as the benchmark's
+            density levels: a scene's ``j``-th copy gets ``densities[j % len(densities)]``, i.e. the
+            count ``navzoo benchmark --density`` runs there (capped at ``max_humans``). None: each
+            scene's default crowd (or ``n_humans`` from the overrides).
+        max_humans: cap on those counts (the benchmark's ``--max-humans``); only with ``densities``.
         **overrides: NavConfig fields for every scene (``k_neighbors``, ``n_humans``, ...).
 
     Raises:
-        ValueError: for bad counts, unknown ids, or scenes whose spaces differ.
+        ValueError: for bad counts or densities, unknown ids, or scenes whose spaces differ.
     """
     from supersuit.vector import ConcatVecEnv, ProcConcatVec
 
@@ -225,6 +232,7 @@ def make_mixed_vec_env(env_ids: Sequence[str] = TRAIN_SCENES, n_envs: int = 1, s
     for name, v, lo in (("n_envs", n_envs, 1), ("num_cpus", num_cpus, 0), ("robots_per_env", robots_per_env, 1)):
         if not isinstance(v, (int, np.integer)) or v < lo:
             raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
+    per_copy = copy_crowds(env_ids, n_envs, densities, max_humans, overrides)
     overrides = {**overrides, "flat_obs": True, "n_robots": int(robots_per_env)}
     defaults = NavConfig.__dataclass_fields__
     sizes = [overrides.get(k, defaults[k].default) for k in ("k_neighbors", "history", "map_cells", "scan_rays")]
@@ -239,8 +247,8 @@ def make_mixed_vec_env(env_ids: Sequence[str] = TRAIN_SCENES, n_envs: int = 1, s
 
     if crowd_policy is not None:
         check_crowd_policy(crowd_policy)
-    fns = [_CopyFactory(env_ids[i % len(env_ids)], i, shift(i), dict(overrides), obs_space, act_space, crowd_policy)
-           for i in range(n_copies)]
+    fns = [_CopyFactory(env_ids[i % len(env_ids)], i, shift(i), {**overrides, **per_copy[i]}, obs_space, act_space,
+                        crowd_policy) for i in range(n_copies)]
     if workers <= 1:
         vec = ConcatVecEnv(fns)
     else:
@@ -254,6 +262,43 @@ def make_mixed_vec_env(env_ids: Sequence[str] = TRAIN_SCENES, n_envs: int = 1, s
             vec = ProcConcatVec([call_wrap(ConcatVecEnv, c) for c in chunks], obs_space, act_space,
                                 n_copies * int(robots_per_env), NavEnv.metadata)
     return SeededSB3VecEnv(vec, seed)
+
+
+def check_densities(densities: Sequence[float] | None, max_humans: int | None,
+                    overrides: Mapping[str, Any] | None = None) -> None:
+    """``ValueError`` naming the problem unless the training crowd levels are valid: densities finite and
+    > 0, ``max_humans`` an integer >= 1 given with densities, and no ``n_humans`` override beside them."""
+    if densities is not None:
+        ds = list(densities)
+        if not ds or any(isinstance(d, bool) or not isinstance(d, (int, float, np.integer, np.floating))
+                         or not math.isfinite(d) or d <= 0 for d in ds):
+            raise ValueError(f"--density must be one or more numbers > 0 (people per m²), got {densities!r}")
+        if overrides and overrides.get("n_humans") is not None:
+            raise ValueError("--density sets each copy's n_humans: drop --set n_humans (or --density)")
+    if max_humans is not None:
+        if isinstance(max_humans, bool) or not isinstance(max_humans, (int, np.integer)) or max_humans < 1:
+            raise ValueError(f"--max-humans must be an integer >= 1, got {max_humans!r}")
+        if densities is None:
+            raise ValueError("--max-humans caps the counts of --density levels: give --density too")
+
+
+def copy_crowds(env_ids: Sequence[str], n_envs: int, densities: Sequence[float] | None = None,
+                max_humans: int | None = None, overrides: Mapping[str, Any] | None = None) -> list[dict[str, Any]]:
+    """Per-copy NavConfig overrides of :func:`make_mixed_vec_env` (copy ``i``: scene ``i % len(env_ids)``,
+    density ``densities[(i // len(env_ids)) % len(densities)]``): ``{"n_humans": n}``, or ``{}`` without
+    densities."""
+    check_densities(densities, max_humans, overrides)
+    n_copies = len(env_ids) * int(n_envs)
+    if densities is None:
+        return [{} for _ in range(n_copies)]
+    from navzoo.benchmark.runner import density_humans
+    from navzoo.envs.registry import SCENARIOS
+    from navzoo.world.library import get_scene
+
+    areas = {e: float(get_scene(SCENARIOS[e]["scene"]).crowd_area()) for e in dict.fromkeys(env_ids)}
+    ds = list(densities)
+    return [{"n_humans": density_humans(areas[env_ids[i % len(env_ids)]], ds[(i // len(env_ids)) % len(ds)],
+                                        max_humans)} for i in range(n_copies)]
 
 
 @contextlib.contextmanager
@@ -560,6 +605,8 @@ class TrainArgs:
     time_limit_s: float | None = None
     extra: dict[str, Any] = field(default_factory=dict)  # NavConfig overrides (--kinematics, ..., --set)
     crowd_policy: str | None = None  # "rllib:PATH": a frozen learned crowd instead of the scene's crowd model
+    densities: tuple[float, ...] | None = None  # crowd density levels the copies cycle through (people/m²)
+    max_humans: int | None = None  # cap on those levels' counts
 
     def __post_init__(self) -> None:
         for name in ("n_envs", "robots_per_env", "total_steps", "n_epochs", "features_dim", "heads", "blocks",
@@ -601,6 +648,7 @@ class TrainArgs:
 
         if self.crowd_policy is not None:
             check_crowd_policy(self.crowd_policy)
+        check_densities(self.densities, self.max_humans, self.extra)
         unknown = [s for s in self.scenes if s not in SCENARIOS]
         if unknown or not self.scenes:
             raise ValueError(f"unknown scene(s) {unknown or '(none given)'}; use scene names or ids such as "
@@ -771,7 +819,8 @@ def train(args: TrainArgs) -> dict[str, Any]:
         print(json.dumps({"already_done": done, "total_steps": args.total_steps}), flush=True)
         summary["checkpoint"] = str(found[0]) if found else None
     vec = make_mixed_vec_env(args.scenes, args.n_envs, seed=args.seed + done, num_cpus=args.num_cpus,
-                             robots_per_env=args.robots_per_env, crowd_policy=args.crowd_policy, **args.extra)
+                             robots_per_env=args.robots_per_env, crowd_policy=args.crowd_policy,
+                             densities=args.densities, max_humans=args.max_humans, **args.extra)
     if args.forward_only:  # SB3 clips the policy's actions to this box (speed >= 0) before the env sees them
         vec.action_space = FORWARD_ONLY_ACTIONS
     with warnings.catch_warnings():  # SuperSuit's vector env has no get_attr: SB3 warns, then uses None
@@ -822,6 +871,7 @@ def train(args: TrainArgs) -> dict[str, Any]:
                 "batch_size": args.batch_size, "lr": args.lr, "gamma": args.gamma, "seed": args.seed,
                 "env_overrides": args.extra, "forward_only": args.forward_only, "target_kl": args.target_kl,
                 "init_from": args.init_from, **({"crowd_policy": args.crowd_policy} if args.crowd_policy else {}),
+                **({"densities": list(args.densities), "max_humans": args.max_humans} if args.densities else {}),
                 "trained_with": "navzoo train robot"}
         summary["policy"] = str(export_policy(model, out / "policy", meta).parent)
         summary["timesteps"] = int(model.num_timesteps)
@@ -845,6 +895,13 @@ def _int_tuple(text: str) -> tuple[int, ...]:
         return tuple(int(v) for v in text.split(",") if v.strip())
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"expected comma-separated integers such as 128,128, got {text!r}") from exc
+
+
+def _float_tuple(text: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers such as 0.05,0.15,0.3, got {text!r}") from exc
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
@@ -878,6 +935,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--crowd-policy", default=None, metavar="rllib:PATH",
                    help="the pedestrians are a crowd trained with RLlib (navzoo train joint --humans learn), frozen, "
                         "instead of the scene's crowd model (needs navzoo[ray])")
+    p.add_argument("--density", type=_float_tuple, default=None, metavar="D[,D...]",
+                   help="train at these crowd densities (people per m² of each scene's crowd area), as navzoo "
+                        "benchmark --density: each scene's copies cycle through them (default: each scene's own "
+                        "crowd)")
+    p.add_argument("--max-humans", type=int, default=None, metavar="N",
+                   help="cap on the people of a --density level (as navzoo benchmark --max-humans)")
     p.add_argument("--set", dest="env_set", action="append", default=[], metavar="KEY=VALUE",
                    help="further NavConfig override for every scene (JSON value), e.g. --set human_at_goal=new_goal")
     p.add_argument("--total-steps", type=int, default=d.total_steps, help="total robot steps to reach (with resumed)")
@@ -944,7 +1007,8 @@ def run_cli(args: argparse.Namespace, error: Callable[[str], Any] | None = None)
             features_dim=args.features_dim, heads=args.heads, blocks=args.blocks,
             net_arch=tuple(args.net_arch), device=args.device, seed=args.seed, threads=args.threads,
             save_every=args.save_every, keep=args.keep, time_limit_s=args.time_limit_s,
-            extra=_env_overrides(args), crowd_policy=getattr(args, "crowd_policy", None))
+            extra=_env_overrides(args), crowd_policy=getattr(args, "crowd_policy", None),
+            densities=getattr(args, "density", None), max_humans=getattr(args, "max_humans", None))
         check_resume(targs)
     except ValueError as exc:
         if error is not None:

@@ -389,6 +389,14 @@ def method_kinematics(method: str) -> str | None:
     return None
 
 
+def density_humans(free_area: float, density: float, max_humans: int | None = None) -> int:
+    """People at ``density`` per m² of a scene's crowd area ``free_area`` (m², as ``Scene.crowd_area``
+    rounded to 0.1), capped at ``max_humans``: the count the benchmark's density levels run (and ``navzoo
+    train robot --density`` trains at)."""
+    n = int(round(density * round(float(free_area), 1)))
+    return n if max_humans is None else min(n, int(max_humans))
+
+
 def build_cells(spec: BenchmarkSpec) -> list[Cell]:
     """Every (scene, crowd, level) of the spec, scene-major."""
     from navzoo.benchmark.report import scene_group
@@ -401,7 +409,7 @@ def build_cells(spec: BenchmarkSpec) -> list[Cell]:
         levels: list[tuple[str, float, int]] = []
         if spec.densities is not None:
             for d in spec.densities:
-                levels.append((level_label(density=d), d, int(round(d * free))))
+                levels.append((level_label(density=d), d, density_humans(free, d)))
         elif spec.humans is not None:
             for n in spec.humans:
                 levels.append((level_label(humans=n), round(n / free, 4) if free else 0.0, n))

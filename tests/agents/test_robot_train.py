@@ -16,6 +16,7 @@ from navzoo.agents import baselines
 from navzoo.agents.robot_train import (
     add_arguments,
     convert_policy,
+    copy_crowds,
     export_policy,
     load_policy,
     make_mixed_vec_env,
@@ -280,6 +281,11 @@ def test_bad_options_are_rejected(tmp_path, argv, message):
     (["--set", "human_at_goal=fly"], "human_at_goal"),
     (["--set", "oops"], "KEY=VALUE"),
     (["--robot-subgoal", "3", "--set", "robot_subgoal=2"], "use its own option"),
+    (["--density", "0.1,-0.2"], "--density must be one or more numbers > 0"),
+    (["--density", "nan"], "--density must be one or more numbers > 0"),
+    (["--density", "0.1", "--set", "n_humans=4"], "drop --set n_humans"),
+    (["--max-humans", "10"], "give --density too"),
+    (["--density", "0.1", "--max-humans", "0"], "--max-humans must be an integer >= 1"),
 ])
 def test_bad_crowd_and_env_options_are_rejected(tmp_path, argv, message):
     with pytest.raises(ValueError, match=message):
@@ -293,6 +299,37 @@ def test_set_overrides_reach_every_copy(tmp_path, capsys):
                          "--set", "human_at_goal=new_goal", "--total-steps", "32", *TINY)) == 0
     cfg = json.loads((out / "policy" / "config.json").read_text())
     assert cfg["training"]["env_overrides"] == {"n_humans": 2, "human_at_goal": "new_goal"}
+
+
+def test_density_levels_give_each_copy_the_benchmarks_count():
+    from navzoo.benchmark.runner import BenchmarkSpec, build_cells
+
+    ids = ["navzoo/Home-v0", "navzoo/Grocery-v0"]
+    crowds = copy_crowds(ids, 3, densities=(0.05, 0.3), max_humans=30)
+    cells = build_cells(BenchmarkSpec(scenes=("home", "grocery"), methods=("sfm",), crowds=("sfm",),
+                                      densities=(0.05, 0.3), max_humans=30))
+    bench = {(c.scene, c.density): c.n_humans for c in cells}
+    # copy i: scene i % 2, density (i // 2) % 2 -> home .05, grocery .05, home .3, grocery .3, home .05, ...
+    expected = [bench[("home", 0.05)], bench[("grocery", 0.05)], bench[("home", 0.3)], bench[("grocery", 0.3)],
+                bench[("home", 0.05)], bench[("grocery", 0.05)]]
+    assert [c["n_humans"] for c in crowds] == expected
+    # home: 0.05 x 103.8 m² = 5 people, 0.3 x 103.8 = 31 capped at 30; grocery at 0.3: 156 capped at 30
+    assert (expected[0], expected[2], expected[3]) == (5, 30, 30)
+    assert copy_crowds(ids, 2) == [{}] * 4
+
+
+def test_density_training_runs_each_copy_at_its_level(tmp_path):
+    vec = make_mixed_vec_env(["navzoo/Home-v0"], n_envs=2, seed=0, densities=(0.05, 0.15))
+    try:
+        counts = [e.par_env.unwrapped.config.n_humans for e in vec.venv.vec_envs]
+    finally:
+        vec.close()
+    assert counts == [5, 16]
+    out = tmp_path / "run"
+    assert run_cli(_args("--out", str(out), "--scenes", "home", "--density", "0.05", "--max-humans", "4",
+                         "--total-steps", "32", *TINY)) == 0
+    cfg = json.loads((out / "policy" / "config.json").read_text())
+    assert cfg["training"]["densities"] == [0.05] and cfg["training"]["max_humans"] == 4
 
 
 def test_cuda_without_cuda_is_rejected(tmp_path):
