@@ -7,27 +7,31 @@
 #
 # Afterwards, here: cp $FILES/parallel_device_16k.jsonl training/robot/ and, when a run was cut off,
 # rm -rf runs/parallel16k && mkdir -p runs && tar xzf $FILES/parallel16k.tgz -C runs   (carry it next time).
-# ROBOTS / BATCHES choose the configurations (default: all ten, largest first).
+# ROBOTS / BATCHES choose the configurations (default: all ten, largest first). SEED=N (default 0) trains
+# another seed: its rows go to training/robot/parallel_device_16k_seedN.jsonl, its runs to runs/parallel16k_seedN
+# (carry that instead; the archive is $OUT/parallel16k_seedN.tgz).
 set -u
 [ -d /tmp/site/pybullet ] || python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site \
   .whl/*.whl 2>&1 | grep -v "already exists" | tail -2
 export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1 OMP_NUM_THREADS=1
-rows=$OUT/parallel_device_16k.jsonl
-cp training/robot/parallel_device_16k.jsonl "$rows"
+seed=${SEED:-0}; sfx=""; [ "$seed" = 0 ] || sfx="_seed$seed"
+runs=runs/parallel16k$sfx
+rows=$OUT/parallel_device_16k$sfx.jsonl
+[ -f "training/robot/parallel_device_16k$sfx.jsonl" ] && cp "training/robot/parallel_device_16k$sfx.jsonl" "$rows"
 # SIGINT = Ctrl-C: the running configuration saves a checkpoint, the study stops (exit 130)
 timeout -s INT "${LIMIT_S:-560}" python3 -m navzoo.cli scaling parallel --robots "${ROBOTS:-16,8,4,2,1}" \
   --batch-sizes "${BATCHES:-512,64}" --sim-steps 16000 --scene navzoo/CircleCrossing-v0 --device cuda --threads 1 \
-  --out "$rows" --resume --runs-dir runs/parallel16k 2>&1 | grep -v '^b3' | grep -v '^{"timesteps"' | cut -c1-400
+  --seed "$seed" --out "$rows" --resume --runs-dir "$runs" 2>&1 | grep -v '^b3' | grep -v '^{"timesteps"' | cut -c1-400
 echo "rows: $(wc -l < "$rows")"
 # keep only the unfinished runs' folders (a finished run's row is written; its 11 MB checkpoint is not needed)
-python3 - <<'PY'
-import re, shutil
+RUNS=$runs python3 - <<'PY'
+import os, re, shutil
 from pathlib import Path
-for d in Path("runs/parallel16k").glob("*_r*_b*"):
+for d in Path(os.environ["RUNS"]).glob("*_r*_b*"):
     total = 16000 * int(re.search(r"_r(\d+)_b", d.name).group(1))
     done = [int(p.stem.split("_")[1]) for p in (d / "checkpoints").glob("step_*.pt")]
     if done and max(done) >= total:
         shutil.rmtree(d)
 PY
-[ -d runs/parallel16k ] && [ -n "$(ls runs/parallel16k)" ] && tar czf "$OUT/parallel16k.tgz" -C runs parallel16k \
-  && du -h "$OUT/parallel16k.tgz"
+[ -d "$runs" ] && [ -n "$(ls "$runs")" ] && tar czf "$OUT/parallel16k$sfx.tgz" -C runs "parallel16k$sfx" \
+  && du -h "$OUT/parallel16k$sfx.tgz"

@@ -180,10 +180,16 @@ def test_resume_skips_measured_rows(tmp_path, capsys):
     assert read_jsonl(out) == [first, *new]
 
     pout = tmp_path / "par.jsonl"
-    done = dict(zip(PARALLEL_KEY, (1, 64, 64, 32, 6, "navzoo/Home-v0", "cpu", 0), strict=True))
+    done = dict(zip(PARALLEL_KEY, (1, 64, 64, 32, 6, "navzoo/Home-v0", "cpu", 0, 0), strict=True))
+    del done["seed"]  # rows written before the study recorded its seed were trained with the default, 0
     write_jsonl([{"study": "parallel", **done}], pout)
     assert parallel_training([1], [64], 64, "home", "cpu", workers=0, out=pout, resume=True) == []  # no training
     assert len(read_jsonl(pout)) == 1
+    # another seed is another run: trained, its row records the seed, and a resume then skips it
+    (row,) = parallel_training([1], [64], 64, "home", "cpu", workers=0, out=pout, resume=True, seed=1,
+                               model=TINY)
+    assert row["seed"] == 1 and len(read_jsonl(pout)) == 2
+    assert parallel_training([1], [64], 64, "home", "cpu", workers=0, out=pout, resume=True, seed=1) == []
 
 
 @pytest.mark.parametrize(("call", "bad"), [

@@ -100,7 +100,10 @@ __all__ = [
 
 MODES = ("peds", "infer", "train")
 RUNTIME_KEY = ("mode", "n_envs", "scene", "device", "workers")
-PARALLEL_KEY = ("robots", "batch_size_requested", "sim_steps", "n_steps", "n_epochs", "scene", "device", "workers")
+PARALLEL_KEY = ("robots", "batch_size_requested", "sim_steps", "n_steps", "n_epochs", "scene", "device", "workers",
+                "seed")
+#: Rows written before the parallel study recorded its seed were all trained with the default seed.
+_PARALLEL_DEFAULT_SEED = 0
 _BARRIER_TIMEOUT_S = 600.0
 
 
@@ -675,7 +678,7 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
     model = model or ModelSize()
     _, peds = agents_per_env(scene_id, n_robots=1)
     earlier = read_jsonl(out) if resume and out is not None else []
-    done = {_key(r, PARALLEL_KEY) for r in earlier}
+    done = {_parallel_key(r) for r in earlier if r.get("study", "parallel") == "parallel"}
     # A requested batch that the rollout cap turns into the batch of another requested size is the same
     # training run (same seed, same settings): it is measured once, and its row is written again for the
     # other size, marked with ``same_run_as_batch_size_requested``.
@@ -687,13 +690,13 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
     for r in rs:
         w = _effective_workers(workers, r)
         for b in bs:
-            if (r, b, int(sim_steps), n_steps, n_epochs, scene_id, dev, w) in done:
+            if (r, b, int(sim_steps), n_steps, n_epochs, scene_id, dev, w, seed) in done:
                 print(f"scaling_study: resume: skipping robots={r} batch={b} sim_steps={sim_steps} {scene_id} {dev} "
-                      f"(already in {out})", file=sys.stderr)
+                      f"seed={seed} (already in {out})", file=sys.stderr)
                 continue
             rollout = n_steps * r
             batch = min(b, rollout)
-            same = measured.get((r, batch, int(sim_steps), n_steps, n_epochs, scene_id, dev, w))
+            same = measured.get((r, batch, int(sim_steps), n_steps, n_epochs, scene_id, dev, w, seed))
             if same is not None:
                 row = {**same, "batch_size_requested": b,
                        "same_run_as_batch_size_requested": same["batch_size_requested"],
@@ -738,7 +741,7 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
             med = float(np.median(iters)) if iters else None
             first_rollout_s = lines[0]["timesteps"] / lines[0]["fps"] if lines and lines[0].get("fps") else None
             row: dict[str, Any] = {
-                "study": "parallel", "robots": r, "batch_size_requested": b, "batch_size": batch,
+                "study": "parallel", "robots": r, "batch_size_requested": b, "batch_size": batch, "seed": seed,
                 "scene": scene_id, "device": dev, "workers": w, "sim_steps": int(sim_steps),
                 "n_steps": n_steps, "n_epochs": n_epochs, "rollout_size": rollout,
                 "gradient_steps_per_iteration": n_epochs * math.ceil(rollout / batch),
@@ -768,10 +771,15 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
     return rows
 
 
+def _parallel_key(row: Mapping[str, Any]) -> tuple:
+    """A parallel-study row's configuration (:data:`PARALLEL_KEY`; rows without a seed have the default)."""
+    return _key({"seed": _PARALLEL_DEFAULT_SEED, **row}, PARALLEL_KEY)
+
+
 def _run_key(row: Mapping[str, Any]) -> tuple:
     """What makes two parallel-study rows the same training run: the key with the effective batch size."""
     return (row["robots"], row["batch_size"], row["sim_steps"], row["n_steps"], row["n_epochs"], row["scene"],
-            row["device"], row["workers"])
+            row["device"], row["workers"], row.get("seed", _PARALLEL_DEFAULT_SEED))
 
 
 # ---------------------------------------------------------------------------------------------
