@@ -121,3 +121,32 @@ def test_bad_inputs(tmp_path, library):
     with pytest.raises(SystemExit) as e:
         main([str(tmp_path / "nope")])
     assert e.value.code == 2
+
+
+def test_path_end_extends_at_the_final_velocity_or_holds(library):
+    from navzoo.agents.amp.tracking import END_VELOCITY_WINDOW_S, _extend_paths
+
+    clip = np.array([library.clip_index("amp_walk")])
+    full = np.array([library.duration(int(clip[0]))])
+    dt = 1.0 / 30.0
+    times = np.arange(int(full[0] / dt) + 60) * dt
+    held = np.asarray(library.state_at(np.repeat(clip, len(times)), np.minimum(times, full[0])).root_pos)[:, :2]
+    shift = np.array([[3.0, -2.0]])
+    ext = _extend_paths(held[None] + shift, library, clip, full, shift, times)[0]
+    inside = times <= full[0]
+    np.testing.assert_array_equal(ext[inside], held[inside] + shift)  # the clip's own path is untouched
+    end = np.asarray(library.state_at(clip, full).root_pos)[0, :2]
+    before = np.asarray(library.state_at(clip, full - END_VELOCITY_WINDOW_S).root_pos)[0, :2]
+    vel = (end - before) / END_VELOCITY_WINDOW_S
+    assert np.linalg.norm(vel) > 0.5  # the walk ends mid-stride
+    after = ~inside
+    np.testing.assert_allclose(ext[after], end + shift[0] + vel * (times[after] - full[0])[:, None], atol=1e-9)
+    assert np.all(np.diff(np.linalg.norm(ext[after] - end - shift[0], axis=1)) > 0)  # walks on, where hold stops
+
+
+def test_path_end_is_recorded_and_checked(library):
+    hold = track_clips(DEFAULT_POLICY_DIR, library, ["amp_walk"], max_seconds=0.5, path_end="hold")
+    ext = track_clips(DEFAULT_POLICY_DIR, library, ["amp_walk"], max_seconds=0.5)
+    assert hold["path_end"] == "hold" and ext["path_end"] == "extend"
+    with pytest.raises(ValueError, match="path_end"):
+        track_clips(DEFAULT_POLICY_DIR, library, [0], max_seconds=0.1, path_end="stop")

@@ -11,8 +11,11 @@ frame by frame." Here, for every clip:
    reference is translated so that it starts at its humanoid's origin, and sim and reference are
    compared in that shifted frame;
 2. the policy's target path is the clip's own root trajectory on the ground, sampled at the control
-   rate (the observation holds the next 10 points 0.5 s apart, as in training; the last point of the
-   clip is held after it ends);
+   rate (the observation holds the next 10 points 0.5 s apart, as in training). The policy looks 5 s
+   ahead, longer than most clips, so the path must go on after the clip's last frame: by default
+   (``path_end="extend"``) it continues at the clip's final root velocity (mean over the last 0.25 s),
+   as a clip cut mid-stride would; ``path_end="hold"`` holds the last point instead, which asks the
+   policy to stop where the clip does not;
 3. the deterministic policy runs for the clip's duration (optionally capped by ``max_seconds``); after
    every control step the 15 rigid bodies of the simulated humanoid are compared with the reference at
    the same time: the *position error* is the mean over the 15 bodies of the distance between link
@@ -222,6 +225,24 @@ def _shift(ref: ReferenceState, d: np.ndarray) -> ReferenceState:
                           ref.root_ang_vel, ref.sph_vel, ref.rev_vel)
 
 
+#: ``path_end="extend"``: the clip's final root velocity is its mean over this last stretch (s).
+END_VELOCITY_WINDOW_S = 0.25
+PATH_ENDS = ("hold", "extend")
+
+
+def _extend_paths(paths: np.ndarray, lib: MotionLibrary, clip: np.ndarray, full: np.ndarray, shift: np.ndarray,
+                  times: np.ndarray) -> np.ndarray:
+    """Target paths (n, L, 2) whose points after each clip's end continue at the clip's final root velocity
+    (its mean over the last :data:`END_VELOCITY_WINDOW_S`) instead of holding the last point."""
+    w = np.minimum(END_VELOCITY_WINDOW_S, full)
+    end = np.asarray(lib.state_at(clip, full).root_pos)[:, :2] + shift
+    before = np.asarray(lib.state_at(clip, full - w).root_pos)[:, :2] + shift
+    vel = (end - before) / np.maximum(w, 1e-9)[:, None]
+    after = times[None, :] > full[:, None]  # (n, L)
+    extra = end[:, None, :] + vel[:, None, :] * (times[None, :] - full[:, None])[..., None]
+    return np.where(after[..., None], extra, paths)
+
+
 def _base_obs_dim(cfg: PathTaskConfig) -> int:
     """Policy inputs without obstacle rays: self-observation + target waypoints."""
     return 105 + 2 * cfg.n_waypoints
@@ -235,6 +256,7 @@ def _track_batch(
     cfg: PathTaskConfig,
     fail_threshold: float,
     stop_on_failure: bool,
+    path_end: str = "extend",
 ) -> list[dict[str, Any]]:
     """Track clips ``idx`` with one humanoid each in one PyBullet client."""
     n = len(idx)
@@ -254,14 +276,16 @@ def _track_batch(
     origins = np.stack([(k % cols) * cfg.spacing, (k // cols) * cfg.spacing], axis=1).astype(float)
     origins -= origins.mean(axis=0)
 
-    # Reference at every control step (times clamped to each clip's real end: the path holds the last
-    # point after it; a capped clip's path goes on as the clip does), shifted to the origins.
+    # Reference at every control step (times clamped to each clip's real end; a capped clip's path goes on
+    # as the clip does), shifted to the origins; the path after a clip's end is extended or held (path_end).
     times = np.minimum(np.arange(path_len)[None, :] * dt, full[:, None])  # (n, L)
     ref = lib.state_at(np.repeat(clip, path_len), times.reshape(-1))
     first = np.asarray(ref.root_pos).reshape(n, path_len, 3)[:, 0]
     shift = np.concatenate([origins - first[:, :2], np.zeros((n, 1))], axis=1)
     ref = _shift(ref, np.repeat(shift, path_len, axis=0))
     paths = np.asarray(ref.root_pos).reshape(n, path_len, 3)[..., :2]
+    if path_end == "extend":
+        paths = _extend_paths(paths, lib, clip, full, shift[:, :2], np.arange(path_len) * dt)
     ref_pos, ref_quat = rigid_bodies(ref)
     ref_pos = ref_pos.reshape(n, path_len, N_BODIES, 3)
     ref_quat = ref_quat.reshape(n, path_len, N_BODIES, 4)
@@ -340,6 +364,7 @@ def track_clips(
     stop_on_failure: bool = True,
     batch_size: int = DEFAULT_BATCH,
     device: str = "cpu",
+    path_end: str = "extend",
 ) -> dict[str, Any]:
     """Track reference clips with the deterministic AMP policy in closed loop (see the module doc).
 
@@ -357,6 +382,12 @@ def track_clips(
         stop_on_failure: end a clip's rollout at its failure (that step counts in its metrics).
         batch_size: humanoids per PyBullet client.
         device: torch device of the policy.
+        path_end: what the target path does after the clip's last frame (the policy looks 5 s ahead, longer
+            than most clips): ``"extend"`` (default) continues it at the clip's final root velocity, as a
+            clip cut mid-stride walks on; ``"hold"`` holds its last point, i.e. tells the policy to stop
+            there, which the clip does not do (the reading until 2026-11-23: with it most failures come in
+            the clips' last 10 %). Only the observed targets differ; the comparison with the clip ends with
+            the clip either way.
 
     Returns:
         The summary dict (keys in the module doc), with ``per_clip`` a list of per-clip dicts.
@@ -371,6 +402,8 @@ def track_clips(
         raise ValueError(f"batch_size must be >= 1, got {batch_size!r}")
     if not fail_threshold > 0:
         raise ValueError(f"fail_threshold must be positive, got {fail_threshold!r}")
+    if path_end not in PATH_ENDS:
+        raise ValueError(f"path_end must be one of {PATH_ENDS}, got {path_end!r}")
     cfg = config or PathTaskConfig()
     policy = _load_policy_dir(policy_dir, device)
     obs_dim = _base_obs_dim(cfg)
@@ -390,7 +423,7 @@ def track_clips(
     per_clip: list[dict[str, Any]] = []
     for b in range(0, len(idx), int(batch_size)):
         per_clip += _track_batch(policy, lib, idx[b : b + int(batch_size)], max_seconds, cfg, float(fail_threshold),
-                                 bool(stop_on_failure))
+                                 bool(stop_on_failure), path_end)
     wall = time.perf_counter() - t0
 
     def mean(key: str, rows: list[dict[str, Any]]) -> float | None:
@@ -416,6 +449,7 @@ def track_clips(
         "max_seconds": None if max_seconds is None else float(max_seconds),
         "fail_threshold_m": float(fail_threshold),
         "stop_on_failure": bool(stop_on_failure),
+        "path_end": path_end,
         "pd_mode": cfg.pd_mode,
         "policy_dir": str(policy_dir),
         "per_clip": per_clip,
@@ -449,6 +483,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--fail-threshold", type=float, default=FAIL_THRESHOLD_M)
     parser.add_argument("--no-stop-on-failure", action="store_true",
                         help="track failed clips to their end (default: a clip's rollout ends at its failure)")
+    parser.add_argument("--path-end", choices=PATH_ENDS, default="extend",
+                        help="target path after a clip's last frame: extend it at the clip's final root velocity "
+                             "(default) or hold its last point (a stop the clip does not make)")
     parser.add_argument("--batch-size", type=int, default=DEFAULT_BATCH)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
@@ -457,7 +494,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         result = track_clips(args.policy_dir, args.motions, _parse_clips(args.clips), args.max_seconds, args.seed,
                              fail_threshold=args.fail_threshold, stop_on_failure=not args.no_stop_on_failure,
-                             batch_size=args.batch_size)
+                             batch_size=args.batch_size, path_end=args.path_end)
     except (FileNotFoundError, ValueError, TypeError) as e:
         parser.exit(2, f"error: {e}\n")
     if not args.per_clip:
