@@ -17,11 +17,16 @@ export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1 OMP_NUM_THREADS=1
 seed=${SEED:-0}; sfx=""; [ "$seed" = 0 ] || sfx="_seed$seed"
 runs=runs/parallel16k$sfx
 rows=$OUT/parallel_device_16k$sfx.jsonl
-[ -f "training/robot/parallel_device_16k$sfx.jsonl" ] && cp "training/robot/parallel_device_16k$sfx.jsonl" "$rows"
+# The rows of an earlier call on the same (still warm) machine are kept in runs/, which is not carried, so a
+# second call skips what the first finished even before they are copied back here.
+kept=runs/parallel_device_16k$sfx.jsonl
+if [ -f "$kept" ]; then cp "$kept" "$rows"
+elif [ -f "training/robot/parallel_device_16k$sfx.jsonl" ]; then cp "training/robot/parallel_device_16k$sfx.jsonl" "$rows"; fi
 # SIGINT = Ctrl-C: the running configuration saves a checkpoint, the study stops (exit 130)
 timeout -s INT "${LIMIT_S:-560}" python3 -m navzoo.cli scaling parallel --robots "${ROBOTS:-16,8,4,2,1}" \
   --batch-sizes "${BATCHES:-512,64}" --sim-steps 16000 --scene navzoo/CircleCrossing-v0 --device cuda --threads 1 \
   --seed "$seed" --out "$rows" --resume --runs-dir "$runs" 2>&1 | grep -v '^b3' | grep -v '^{"timesteps"' | cut -c1-400
+mkdir -p runs && [ -f "$rows" ] && cp "$rows" "$kept"
 echo "rows: $(wc -l < "$rows")"
 # keep only the unfinished runs' folders (a finished run's row is written; its 11 MB checkpoint is not needed)
 RUNS=$runs python3 - <<'PY'
