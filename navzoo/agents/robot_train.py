@@ -890,18 +890,20 @@ def train(args: TrainArgs) -> dict[str, Any]:
 # Command line.
 
 
-def _int_tuple(text: str) -> tuple[int, ...]:
-    try:
-        return tuple(int(v) for v in text.split(",") if v.strip())
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"expected comma-separated integers such as 128,128, got {text!r}") from exc
+def _tuple_of(kind: type, example: str) -> Callable[[str], tuple[Any, ...]]:
+    """An argparse type: comma-separated ``kind`` values (an error names ``example``)."""
+
+    def parse(text: str) -> tuple[Any, ...]:
+        try:
+            return tuple(kind(v) for v in text.split(",") if v.strip())
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(f"expected comma-separated values such as {example}, got {text!r}") from exc
+
+    return parse
 
 
-def _float_tuple(text: str) -> tuple[float, ...]:
-    try:
-        return tuple(float(v) for v in text.split(",") if v.strip())
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"expected comma-separated numbers such as 0.05,0.15,0.3, got {text!r}") from exc
+_int_tuple = _tuple_of(int, "128,128")
+_float_tuple = _tuple_of(float, "0.05,0.15,0.3")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
