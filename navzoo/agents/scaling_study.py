@@ -678,25 +678,29 @@ def parallel_training(robots_list: Sequence[int], batch_sizes: Sequence[int], si
     model = model or ModelSize()
     _, peds = agents_per_env(scene_id, n_robots=1)
     earlier = read_jsonl(out) if resume and out is not None else []
-    done = {_parallel_key(r) for r in earlier if r.get("study", "parallel") == "parallel"}
+    earlier = [r for r in earlier if r.get("study") == "parallel"]
+    done = {_parallel_key(r) for r in earlier}
     # A requested batch that the rollout cap turns into the batch of another requested size is the same
     # training run (same seed, same settings): it is measured once, and its row is written again for the
     # other size, marked with ``same_run_as_batch_size_requested``.
     measured: dict[tuple, dict[str, Any]] = {}
     for row in earlier:
-        if row.get("study") == "parallel" and "batch_size" in row and "same_run_as_batch_size_requested" not in row:
+        if "batch_size" in row and "same_run_as_batch_size_requested" not in row:
             measured.setdefault(_run_key(row), row)
     rows: list[dict[str, Any]] = []
     for r in rs:
         w = _effective_workers(workers, r)
         for b in bs:
-            if (r, b, int(sim_steps), n_steps, n_epochs, scene_id, dev, w, seed) in done:
+            rollout = n_steps * r
+            batch = min(b, rollout)
+            config = {"robots": r, "batch_size_requested": b, "batch_size": batch, "sim_steps": int(sim_steps),
+                      "n_steps": n_steps, "n_epochs": n_epochs, "scene": scene_id, "device": dev, "workers": w,
+                      "seed": seed}
+            if _parallel_key(config) in done:
                 print(f"scaling_study: resume: skipping robots={r} batch={b} sim_steps={sim_steps} {scene_id} {dev} "
                       f"seed={seed} (already in {out})", file=sys.stderr)
                 continue
-            rollout = n_steps * r
-            batch = min(b, rollout)
-            same = measured.get((r, batch, int(sim_steps), n_steps, n_epochs, scene_id, dev, w, seed))
+            same = measured.get(_run_key(config))
             if same is not None:
                 row = {**same, "batch_size_requested": b,
                        "same_run_as_batch_size_requested": same["batch_size_requested"],
