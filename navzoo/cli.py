@@ -62,6 +62,10 @@ def build_parser() -> argparse.ArgumentParser:
     from navzoo.agents.amp.train import add_arguments as add_amp_arguments
 
     add_amp_arguments(tsub.add_parser("amp", help="the AMP pedestrian controller (resumable; see docs/amp_training.md)"))
+    from navzoo.agents.amp.steering import add_arguments as add_trim_arguments
+
+    add_trim_arguments(tsub.add_parser(
+        "amp-trim", help="calibrate an AMP policy's steering trim on open-ground paths (see docs/pedestrians.md)"))
     from navzoo.agents.diffusion.train import add_arguments as add_diffusion_arguments
 
     add_diffusion_arguments(tsub.add_parser(
@@ -260,6 +264,10 @@ def _train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         result = run(targs)
         print(json.dumps(result, default=str) if args.json else result)
         return 0
+    if args.train_command == "amp-trim":
+        from navzoo.agents.amp.steering import run as run_trim
+
+        return run_trim(args)
     if args.train_command == "diffusion":
         from navzoo.agents.diffusion.train import run_cli as run_diffusion
 

@@ -9,7 +9,8 @@ social-force rollouts), ``WAYPOINT_LOOKAHEAD`` (0 = waypoints in strict order) a
 ``TARGET_TURN_RATE`` (rad/s, the rollouts' heading-rate limit; 0 or left out = off) and, with
 FALLEN = 1, ``NavConfig.human_fallen_obstacles`` (people plan around fallen bodies; 0 or left out = off);
 FALLEN may instead name boolean NavConfig flags to turn on, joined by ``+`` (e.g.
-``human_door_entries+human_fallen_obstacles``).
+``human_door_entries+human_fallen_obstacles``). A seventh field TRIM sets the AMP policy's steering
+trim in rad (``AmpPolicy.steering_trim``; left out = the policy's own, see ``navzoo train amp-trim``).
 ``--scenes`` picks some of the 8 scenes (each keeps its people count).
 
     python scripts/amp_target_ablation.py --configs before:0.1:0.1:0,now:0.1:0:4 --seconds 200 \
@@ -28,13 +29,14 @@ from pathlib import Path
 
 def parse_config(text: str) -> dict:
     parts = text.split(":")
-    if len(parts) not in (4, 5, 6):
-        raise ValueError(f"a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN]], got {text!r}")
+    if len(parts) not in (4, 5, 6, 7):
+        raise ValueError("a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN[:TRIM]]], "
+                         f"got {text!r}")
     name, plan, wall, ahead = parts[:4]
     cfg = {"name": name, "plan_margin": float(plan), "wall_margin": float(wall), "lookahead": int(ahead),
            "turn_rate": float(parts[4]) if len(parts) >= 5 else 0.0,
-           "fallen_obstacles": len(parts) == 6 and parts[5].strip() == "1"}
-    flags = parts[5].strip() if len(parts) == 6 else "0"
+           "trim": float(parts[6]) if len(parts) == 7 else None}
+    flags = parts[5].strip() if len(parts) >= 6 else "0"
     cfg["env_flags"] = [] if flags == "0" else ["human_fallen_obstacles"] if flags == "1" else flags.split("+")
     from navzoo.envs.config import NavConfig
 
@@ -44,6 +46,8 @@ def parse_config(text: str) -> dict:
     cfg["fallen_obstacles"] = "human_fallen_obstacles" in cfg["env_flags"]
     if min(cfg["plan_margin"], cfg["wall_margin"], cfg["lookahead"], cfg["turn_rate"]) < 0:
         raise ValueError(f"margins, lookahead and turn rate must be >= 0, got {text!r}")
+    if cfg["trim"] is not None and not abs(cfg["trim"]) <= 0.5:
+        raise ValueError(f"the steering trim must be within ±0.5 rad, got {text!r}")
     return cfg
 
 
@@ -59,12 +63,24 @@ def _run(job: tuple[dict, str, int, float, int]) -> dict:
     ah.WALL_PLAN_MARGIN = cfg["wall_margin"]
     ah.WAYPOINT_LOOKAHEAD = ne.WAYPOINT_LOOKAHEAD = cfg["lookahead"]
     ah.TARGET_TURN_RATE = cfg["turn_rate"]
+    if cfg.get("trim") is not None:  # this worker's AMP policy gets the configuration's steering trim
+        import navzoo.agents.amp.pedestrian_policy as pp
+
+        load = pp.load_policy
+
+        def load_trimmed(path, device="cpu"):
+            policy = load(path, device=device)
+            policy.steering_trim = cfg["trim"]
+            return policy
+
+        pp.load_policy = load_trimmed
     from navzoo.benchmark.pedestrians import follow_scene
 
     row = follow_scene(scene, n, seconds, seed, env_overrides=dict.fromkeys(cfg["env_flags"], True))
     row.pop("poses")
     return {"config": cfg["name"],
-            **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles", "env_flags")},
+            **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles", "env_flags",
+                                   "trim")},
             "seed": seed, **row}
 
 

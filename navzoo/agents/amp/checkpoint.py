@@ -275,11 +275,46 @@ def export_policy_files(
     return out
 
 
+#: Largest steering trim (rad) an exported policy may carry (:mod:`navzoo.agents.amp.steering`).
+MAX_STEERING_TRIM = 0.5
+
+
+def waypoint_layout(obs_dim: int, config: dict[str, Any] | None = None) -> tuple[int, int]:
+    """(first column, number K) of the target points in a policy observation of ``obs_dim`` columns:
+    the ``steering_trim`` entry of ``config`` when it names them, else the layout of
+    :func:`navzoo.agents.amp.features.policy_observation` (self-observation, K = 10 points, rays)."""
+    from navzoo.agents.amp.features import FEATURE_DIM, N_RAYS
+
+    trim = (config or {}).get("steering_trim") or {}
+    if "waypoint_start" in trim and "n_waypoints" in trim:
+        return int(trim["waypoint_start"]), int(trim["n_waypoints"])
+    k = 10
+    if obs_dim not in (FEATURE_DIM + 2 * k, FEATURE_DIM + 2 * k + N_RAYS):
+        raise ValueError(f"cannot tell where the target points are in an observation of {obs_dim} columns")
+    return FEATURE_DIM, k
+
+
+def rotate_waypoints(obs: np.ndarray, start: int, k: int, angle: float) -> np.ndarray:
+    """A copy of ``obs`` (N, D) with its K target points (heading frame, columns ``start`` ..
+    ``start + 2K``) turned by ``angle`` rad counter-clockwise (to the left) about the body."""
+    out = np.array(obs, dtype=np.float32, copy=True)
+    wp = out[:, start:start + 2 * k].reshape(-1, k, 2).astype(np.float64)
+    c, s = np.cos(angle), np.sin(angle)
+    out[:, start:start + 2 * k] = np.stack([c * wp[..., 0] - s * wp[..., 1], s * wp[..., 0] + c * wp[..., 1]],
+                                           axis=-1).reshape(-1, 2 * k)
+    return out
+
+
 class AmpPolicy:
     """Deterministic AMP policy: ``policy(obs) -> mean action`` clipped to [-1, 1].
 
     Accepts ``(obs_dim,)`` or ``(N, obs_dim)`` numpy arrays, returns float32 ``(act_dim,)`` or
     ``(N, act_dim)``. Runs under ``torch.no_grad`` on ``device``.
+
+    ``steering_trim`` (rad, from the config's ``steering_trim.rad``, default 0): the observed target
+    points are turned by this angle to the left about the body before the forward pass. It cancels a
+    trained policy's constant steering bias (a body that drifts to one side of every path); it is
+    calibrated on open-ground paths by :mod:`navzoo.agents.amp.steering`.
     """
 
     def __init__(self, actor: Actor, obs_norm: RunningMeanStd, config: dict[str, Any], device: str = "cpu"):
@@ -289,6 +324,27 @@ class AmpPolicy:
         self.config = config
         self.obs_dim = int(config["obs_dim"])
         self.act_dim = int(config["act_dim"])
+        trim = config.get("steering_trim")
+        if trim is not None and not isinstance(trim, dict):
+            raise ValueError(f"steering_trim must be an object with 'rad', got {trim!r}")
+        self.steering_trim = float((trim or {}).get("rad", 0.0))
+        if not (np.isfinite(self.steering_trim) and abs(self.steering_trim) <= MAX_STEERING_TRIM):
+            raise ValueError(f"steering_trim.rad must be finite and within ±{MAX_STEERING_TRIM}, "
+                             f"got {self.steering_trim!r}")
+        self._waypoints: tuple[int, int] | None = None
+        if self.steering_trim or trim:
+            self._waypoints = waypoint_layout(self.obs_dim, config)
+            start, k = self._waypoints
+            if start < 0 or k < 1 or start + 2 * k > self.obs_dim:
+                raise ValueError(f"steering_trim names target points at columns {start}..{start + 2 * k}, "
+                                 f"outside the {self.obs_dim} observation columns")
+
+    @property
+    def waypoints(self) -> tuple[int, int]:
+        """(first column, K) of the target points in the observation."""
+        if self._waypoints is None:
+            self._waypoints = waypoint_layout(self.obs_dim, self.config)
+        return self._waypoints
 
     @torch.no_grad()
     def __call__(self, obs: np.ndarray) -> np.ndarray:
@@ -298,7 +354,10 @@ class AmpPolicy:
             raise ValueError(
                 f"obs must have shape (obs_dim,) or (N, obs_dim) with obs_dim={self.obs_dim}, got {x.shape}"
             )
-        t = torch.from_numpy(x.reshape(-1, self.obs_dim)).to(self.device)
+        x = x.reshape(-1, self.obs_dim)
+        if self.steering_trim:
+            x = rotate_waypoints(x, *self.waypoints, self.steering_trim)
+        t = torch.from_numpy(x).to(self.device)
         act = self.actor(self.obs_norm.normalize(t)).clamp(-1.0, 1.0).cpu().numpy()
         return act[0] if single else act
 
@@ -340,4 +399,7 @@ def load_policy(path: str | os.PathLike[str], device: str = "cpu") -> Callable[[
         )
     except (KeyError, RuntimeError, ValueError, TypeError) as e:
         raise CheckpointError(f"{w_path}: does not match {cfg_path.name} ({e})") from e
-    return AmpPolicy(actor, norm, cfg, device)
+    try:
+        return AmpPolicy(actor, norm, cfg, device)
+    except (ValueError, TypeError) as e:
+        raise CheckpointError(f"{cfg_path}: {e}") from e

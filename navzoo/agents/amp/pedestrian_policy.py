@@ -30,11 +30,20 @@ class AmpPedestrianPolicy:
     Args:
         policy_dir: exported policy (``config.json`` + weights); default: the shipped one.
         device: torch device of the forward pass.
+        steering_trim: rad; overrides the policy's calibrated steering trim (``0.0`` turns it off;
+            None keeps the config's, see :mod:`navzoo.agents.amp.steering`).
     """
 
-    def __init__(self, policy_dir: str | Path | None = None, device: str = "cpu") -> None:
+    def __init__(self, policy_dir: str | Path | None = None, device: str = "cpu",
+                 steering_trim: float | None = None) -> None:
         self.policy_dir = Path(policy_dir) if policy_dir is not None else default_policy_dir()
         self.policy = load_policy(self.policy_dir, device=device)
+        if steering_trim is not None:
+            from navzoo.agents.amp.checkpoint import MAX_STEERING_TRIM
+
+            if not (np.isfinite(steering_trim) and abs(steering_trim) <= MAX_STEERING_TRIM):
+                raise ValueError(f"steering_trim must be finite and within ±{MAX_STEERING_TRIM} rad, got {steering_trim!r}")
+            self.policy.steering_trim = float(steering_trim)
 
     def reset(self, env: NavEnv) -> None:
         if env.config.human_model != "amp":
