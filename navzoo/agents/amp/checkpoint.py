@@ -327,10 +327,7 @@ class AmpPolicy:
         trim = config.get("steering_trim")
         if trim is not None and not isinstance(trim, dict):
             raise ValueError(f"steering_trim must be an object with 'rad', got {trim!r}")
-        self.steering_trim = float((trim or {}).get("rad", 0.0))
-        if not (np.isfinite(self.steering_trim) and abs(self.steering_trim) <= MAX_STEERING_TRIM):
-            raise ValueError(f"steering_trim.rad must be finite and within ±{MAX_STEERING_TRIM}, "
-                             f"got {self.steering_trim!r}")
+        self.steering_trim = (trim or {}).get("rad", 0.0)
         self._waypoints: tuple[int, int] | None = None
         if self.steering_trim or trim:
             self._waypoints = waypoint_layout(self.obs_dim, config)
@@ -338,6 +335,18 @@ class AmpPolicy:
             if start < 0 or k < 1 or start + 2 * k > self.obs_dim:
                 raise ValueError(f"steering_trim names target points at columns {start}..{start + 2 * k}, "
                                  f"outside the {self.obs_dim} observation columns")
+
+    @property
+    def steering_trim(self) -> float:
+        """rad the observed target points are turned to the left (0 = off); checked when set."""
+        return self._steering_trim
+
+    @steering_trim.setter
+    def steering_trim(self, value: float) -> None:
+        trim = float(value)
+        if not (np.isfinite(trim) and abs(trim) <= MAX_STEERING_TRIM):
+            raise ValueError(f"steering_trim must be finite and within ±{MAX_STEERING_TRIM} rad, got {value!r}")
+        self._steering_trim = trim
 
     @property
     def waypoints(self) -> tuple[int, int]:

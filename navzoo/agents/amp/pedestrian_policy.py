@@ -39,11 +39,7 @@ class AmpPedestrianPolicy:
         self.policy_dir = Path(policy_dir) if policy_dir is not None else default_policy_dir()
         self.policy = load_policy(self.policy_dir, device=device)
         if steering_trim is not None:
-            from navzoo.agents.amp.checkpoint import MAX_STEERING_TRIM
-
-            if not (np.isfinite(steering_trim) and abs(steering_trim) <= MAX_STEERING_TRIM):
-                raise ValueError(f"steering_trim must be finite and within ±{MAX_STEERING_TRIM} rad, got {steering_trim!r}")
-            self.policy.steering_trim = float(steering_trim)
+            self.policy.steering_trim = steering_trim  # checked by AmpPolicy
 
     def reset(self, env: NavEnv) -> None:
         if env.config.human_model != "amp":
