@@ -129,3 +129,14 @@ def test_pedestrian_policy_can_override_the_trim(tmp_path: Path) -> None:
         with pytest.raises(ValueError, match="steering_trim must be finite"):
             AmpPedestrianPolicy(pol, steering_trim=bad)
 
+
+def test_tracking_takes_a_trim_override() -> None:
+    """``track_clips(steering_trim=...)`` (``--steering-trim``) changes what the policy does."""
+    from navzoo.agents.amp.tracking import track_clips
+
+    a = track_clips(clips=[0], max_seconds=1.0, steering_trim=0.0)
+    b = track_clips(clips=[0], max_seconds=1.0, steering_trim=0.3)
+    assert a["mean_pos_error_m"] != b["mean_pos_error_m"]
+    with pytest.raises(ValueError, match="steering_trim must be finite"):
+        track_clips(clips=[0], max_seconds=1.0, steering_trim=0.9)
+
