@@ -24,13 +24,8 @@ import numpy as np
 def trace(scene: str, people: int, seconds: float, seed: int, plan_velocity: str, trim: float | None) -> dict:
     from navzoo.benchmark.pedestrians import _make
 
-    wrapped, env = _make(scene, people, "amp", seconds, seed, None)
+    wrapped, env = _make(scene, people, "amp", seconds, seed, None, steering_trim=trim)
     amp = env.amp
-    policy = wrapped.policy.policy if hasattr(wrapped, "policy") else None
-    if trim is not None:
-        if policy is None:
-            raise RuntimeError("cannot reach the AMP policy to set its trim")
-        policy.steering_trim = trim
     planar, control_step, plan_all = amp.planar, amp.control_step, amp.plan_all
     ema, hist = [None], []
 
@@ -84,7 +79,7 @@ def trace(scene: str, people: int, seconds: float, seed: int, plan_velocity: str
                          "mean_abs_sideways_m": round(float(np.abs(side[m]).mean()), 3)})
     standing = fallen == 0
     return {"scene": scene, "people": people, "seconds": seconds, "seed": seed, "plan_velocity": plan_velocity,
-            "steering_trim": policy.steering_trim if policy is not None else None,
+            "steering_trim": wrapped.policy.policy.steering_trim,
             "mean_error_m": round(float(err[standing].mean()), 3),
             "share_steps_over_0_5_m": round(float((err[standing] > 0.5).mean()), 4),
             "walking_signed_sideways_m": round(float(side[walk].mean()), 3),

@@ -63,20 +63,10 @@ def _run(job: tuple[dict, str, int, float, int]) -> dict:
     ah.WALL_PLAN_MARGIN = cfg["wall_margin"]
     ah.WAYPOINT_LOOKAHEAD = ne.WAYPOINT_LOOKAHEAD = cfg["lookahead"]
     ah.TARGET_TURN_RATE = cfg["turn_rate"]
-    if cfg.get("trim") is not None:  # this worker's AMP policy gets the configuration's steering trim
-        import navzoo.agents.amp.pedestrian_policy as pp
-
-        load = pp.load_policy
-
-        def load_trimmed(path, device="cpu"):
-            policy = load(path, device=device)
-            policy.steering_trim = cfg["trim"]
-            return policy
-
-        pp.load_policy = load_trimmed
     from navzoo.benchmark.pedestrians import follow_scene
 
-    row = follow_scene(scene, n, seconds, seed, env_overrides=dict.fromkeys(cfg["env_flags"], True))
+    row = follow_scene(scene, n, seconds, seed, env_overrides=dict.fromkeys(cfg["env_flags"], True),
+                       steering_trim=cfg.get("trim"))
     row.pop("poses")
     return {"config": cfg["name"],
             **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles", "env_flags",

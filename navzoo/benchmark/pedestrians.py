@@ -52,7 +52,7 @@ def people_per_scene(n_scenes: int, lo: int = 3, hi: int = 15) -> list[int]:
 
 
 def _make(scene: str, n: int, human_model: str, seconds: float, seed: int, policy_dir: str | None,
-          crowd_model: str = "sfm", env_overrides: dict[str, Any] | None = None):
+          crowd_model: str = "sfm", env_overrides: dict[str, Any] | None = None, steering_trim: float | None = None):
     from navzoo.envs.nav_env import NavEnv
     from navzoo.envs.wrappers import FrozenAgents
 
@@ -61,7 +61,7 @@ def _make(scene: str, n: int, human_model: str, seconds: float, seed: int, polic
     if human_model == "amp":
         from navzoo.agents.amp.pedestrian_policy import AmpPedestrianPolicy
 
-        policy: Any = AmpPedestrianPolicy(policy_dir)
+        policy: Any = AmpPedestrianPolicy(policy_dir, steering_trim=steering_trim)
     else:
         from navzoo.agents.crowd import CrowdPolicy
 
@@ -117,11 +117,13 @@ def target_points(env) -> np.ndarray | None:
 
 def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, policy_dir: str | None = None,
                  pose_every: int = 1, max_poses: int = 20_000, crowd_model: str = "sfm",
-                 human_model: str = "amp", env_overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+                 human_model: str = "amp", env_overrides: dict[str, Any] | None = None,
+                 steering_trim: float | None = None) -> dict[str, Any]:
     """One scene of :func:`following`: trip outcomes, contact flags, path error sums and poses.
 
     ``crowd_model`` makes the target trajectories (AMP) or drives the bodies (kinematic);
-    ``env_overrides`` are further NavConfig fields (e.g. ``{"human_fallen_obstacles": True}``). Kinematic
+    ``env_overrides`` are further NavConfig fields (e.g. ``{"human_fallen_obstacles": True}``);
+    ``steering_trim`` overrides the AMP policy's (:class:`AmpPedestrianPolicy`). Kinematic
     pedestrians never fall; their contacts are geometric (:func:`kinematic_contacts`) and their path
     error is measured against :func:`target_points` (none for rule-based crowds: ``err_n`` stays 0,
     ``path_error`` is False, and a trip that reaches its goal is a success).
@@ -129,7 +131,7 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
     t0 = time.time()
     if human_model not in ("amp", "kinematic"):
         raise ValueError(f"human_model must be 'amp' or 'kinematic', got {human_model!r}")
-    wrapped, env = _make(scene, n, human_model, seconds, seed, policy_dir, crowd_model, env_overrides)
+    wrapped, env = _make(scene, n, human_model, seconds, seed, policy_dir, crowd_model, env_overrides, steering_trim)
     amp = env.amp is not None
     body_ids = env.amp.ids if amp else env.humans.ids
     has_target = amp or env.diffusion is not None
