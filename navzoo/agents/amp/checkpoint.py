@@ -315,6 +315,11 @@ class AmpPolicy:
     points are turned by this angle to the left about the body before the forward pass. It cancels a
     trained policy's constant steering bias (a body that drifts to one side of every path); it is
     calibrated on open-ground paths by :mod:`navzoo.agents.amp.steering`.
+
+    ``symmetric`` (from the config's ``"symmetric": true``, default off): the mean action is averaged
+    with the mirror image of the action for the mirrored observation
+    (:class:`navzoo.agents.amp.symmetry.SymmetricActor`), which makes the policy exactly left/right
+    symmetric, so it has no constant steering bias to trim.
     """
 
     def __init__(self, actor: Actor, obs_norm: RunningMeanStd, config: dict[str, Any], device: str = "cpu"):
@@ -329,6 +334,8 @@ class AmpPolicy:
             raise ValueError(f"steering_trim must be an object with 'rad', got {trim!r}")
         self.steering_trim = (trim or {}).get("rad", 0.0)
         self._waypoints: tuple[int, int] | None = None
+        self._symmetric: Any = None
+        self.symmetric = config.get("symmetric", False)
         if self.steering_trim or trim:
             self._waypoints = waypoint_layout(self.obs_dim, config)
             start, k = self._waypoints
@@ -346,7 +353,46 @@ class AmpPolicy:
         trim = float(value)
         if not (np.isfinite(trim) and abs(trim) <= MAX_STEERING_TRIM):
             raise ValueError(f"steering_trim must be finite and within ±{MAX_STEERING_TRIM} rad, got {value!r}")
+        if trim and getattr(self, "_symmetric", None) is not None:
+            raise ValueError("a symmetric policy has no steering bias to trim: steering_trim must be 0 "
+                             f"when symmetric is on, got {value!r}")
         self._steering_trim = trim
+
+    @property
+    def symmetric(self) -> bool:
+        """Whether actions are made left/right symmetric (see the class doc); checked when set."""
+        return self._symmetric is not None
+
+    @symmetric.setter
+    def symmetric(self, value: bool) -> None:
+        if not isinstance(value, bool):
+            raise ValueError(f"symmetric must be true or false, got {value!r}")
+        if not value:
+            self._symmetric = None
+            return
+        if self.steering_trim:
+            raise ValueError(f"symmetric needs steering_trim 0 (a symmetric policy has no steering bias), "
+                             f"this policy has {self.steering_trim} rad: set steering_trim = 0 first")
+        from navzoo.agents.amp.symmetry import SymmetricActor
+
+        _, k = self.waypoints
+        self._symmetric = SymmetricActor(self.actor, self.obs_norm, self.obs_dim, k)
+
+    def override(self, steering_trim: float | None = None, symmetric: bool | None = None) -> None:
+        """Replace the config's steering trim and/or symmetry for this run (None keeps a setting).
+        ``symmetric=True`` drops the config's trim unless a nonzero ``steering_trim`` is given, which
+        is refused (a symmetric policy has no bias to trim)."""
+        if symmetric:
+            if steering_trim:
+                raise ValueError("a symmetric policy has no steering bias to trim: steering_trim must be 0 "
+                                 f"with symmetric, got {steering_trim!r}")
+            self.steering_trim = 0.0
+            self.symmetric = True
+            return
+        if symmetric is not None:
+            self.symmetric = False
+        if steering_trim is not None:
+            self.steering_trim = steering_trim
 
     @property
     def waypoints(self) -> tuple[int, int]:
@@ -367,7 +413,8 @@ class AmpPolicy:
         if self.steering_trim:
             x = rotate_waypoints(x, *self.waypoints, self.steering_trim)
         t = torch.from_numpy(x).to(self.device)
-        act = self.actor(self.obs_norm.normalize(t)).clamp(-1.0, 1.0).cpu().numpy()
+        mean = self._symmetric(t) if self._symmetric is not None else self.actor(self.obs_norm.normalize(t))
+        act = mean.clamp(-1.0, 1.0).cpu().numpy()
         return act[0] if single else act
 
 

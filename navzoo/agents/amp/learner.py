@@ -140,6 +140,10 @@ class AmpConfig:
         learn_std: learn the log-std (default: fixed, as public AMP).
         bounds_loss_coef, bounds_soft: penalty ``coef * sum(relu(|mu| - soft)^2)`` on the mean action.
         entropy_coef: entropy bonus (0: with a fixed std it would be constant anyway).
+        mirror_coef: weight of the mirror-symmetry loss on the mean action,
+            ``|mu(o) - M_a mu(M_o o)|^2`` summed over action columns (Yu, Turk and Liu 2018; maps in
+            :mod:`navzoo.agents.amp.symmetry`); 0 = off. Needs the controller's observation layout
+            (self-observation, 10 target points, optionally the 16 rays) and its 28 actions.
         disc_minibatch_size: policy samples per discriminator step (taken from the PPO minibatch);
             as many replay samples and reference samples join them.
         disc_grad_penalty: weight of the gradient penalty on reference samples.
@@ -181,6 +185,7 @@ class AmpConfig:
     bounds_loss_coef: float = 10.0
     bounds_soft: float = 1.1
     entropy_coef: float = 0.0
+    mirror_coef: float = 0.0
     disc_minibatch_size: int = 512
     disc_grad_penalty: float = 5.0
     disc_logit_reg: float = 0.05
@@ -233,6 +238,7 @@ class AmpConfig:
         non_negative = (
             "bounds_loss_coef",
             "entropy_coef",
+            "mirror_coef",
             "disc_grad_penalty",
             "disc_logit_reg",
             "disc_weight_decay",
@@ -374,6 +380,13 @@ class AmpLearner:
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=cfg.critic_lr, eps=cfg.adam_eps)
         self.disc_opt = torch.optim.Adam(self.disc.parameters(), lr=cfg.disc_lr, eps=cfg.adam_eps)
         self.replay = ReplayBuffer(cfg.replay_size, self.amp_obs_dim, self.device, cfg.replay_keep_prob)
+        self._mirror: tuple[Any, Any] | None = None
+        if cfg.mirror_coef:
+            from navzoo.agents.amp.symmetry import action_mirror, observation_mirror
+
+            if self.act_dim != 28:
+                raise ValueError(f"mirror_coef needs the humanoid's 28 actions, this env has {self.act_dim}")
+            self._mirror = (observation_mirror(self.obs_dim), action_mirror())  # raises on another layout
 
         self.rng = np.random.default_rng(cfg.seed)
         self.torch_gen = torch.Generator().manual_seed(cfg.seed + 1)
@@ -547,6 +560,7 @@ class AmpLearner:
 
         with torch.no_grad():
             obs_n = self.obs_norm.normalize(obs)
+            mirrored_n = self.obs_norm.normalize(self._mirror[0](obs)) if self._mirror else None
             amp_n = self.amp_norm.normalize(amp)
             ref_n = self.amp_norm.normalize(ref)
             # 2. Rewards: style from the discriminator before it sees this batch.
@@ -599,6 +613,10 @@ class AmpLearner:
                 actor_loss = pg_loss + cfg.bounds_loss_coef * b_loss
                 if cfg.entropy_coef:
                     actor_loss = actor_loss - cfg.entropy_coef * dist.entropy().sum(-1).mean()
+                if mirrored_n is not None:  # the mirrored state's mean action, mirrored back, should agree
+                    mirror_loss = (dist.mean - self._mirror[1](self.actor(mirrored_n[mb]))).square().sum(-1).mean()
+                    actor_loss = actor_loss + cfg.mirror_coef * mirror_loss
+                    log("losses/mirror", mirror_loss)
                 self._step(self.actor_opt, actor_loss, self.actor_params)
                 # Critic: MSE on (normalised) returns.
                 critic_loss = 0.5 * (self.critic(obs_n[mb]) - v_target[mb]).square().mean()

@@ -32,14 +32,16 @@ class AmpPedestrianPolicy:
         device: torch device of the forward pass.
         steering_trim: rad; overrides the policy's calibrated steering trim (``0.0`` turns it off;
             None keeps the config's, see :mod:`navzoo.agents.amp.steering`).
+        symmetric: make the policy left/right symmetric (:mod:`navzoo.agents.amp.symmetry`; drops
+            the trim); None keeps the config's setting.
     """
 
     def __init__(self, policy_dir: str | Path | None = None, device: str = "cpu",
-                 steering_trim: float | None = None) -> None:
+                 steering_trim: float | None = None, symmetric: bool | None = None) -> None:
         self.policy_dir = Path(policy_dir) if policy_dir is not None else default_policy_dir()
         self.policy = load_policy(self.policy_dir, device=device)
-        if steering_trim is not None:
-            self.policy.steering_trim = steering_trim  # checked by AmpPolicy
+        if steering_trim is not None or symmetric is not None:
+            self.policy.override(steering_trim, symmetric)  # checked by AmpPolicy
 
     def reset(self, env: NavEnv) -> None:
         if env.config.human_model != "amp":

@@ -366,6 +366,7 @@ def track_clips(
     device: str = "cpu",
     path_end: str = "extend",
     steering_trim: float | None = None,
+    symmetric: bool | None = None,
 ) -> dict[str, Any]:
     """Track reference clips with the deterministic AMP policy in closed loop (see the module doc).
 
@@ -391,6 +392,8 @@ def track_clips(
             the clip either way.
         steering_trim: rad; overrides the policy's steering trim (0 = off; None: the policy's own,
             see :mod:`navzoo.agents.amp.steering`).
+        symmetric: make the policy left/right symmetric (:mod:`navzoo.agents.amp.symmetry`; drops the
+            steering trim); None: the policy's own setting.
 
     Returns:
         The summary dict (keys in the module doc), with ``per_clip`` a list of per-clip dicts.
@@ -409,8 +412,8 @@ def track_clips(
         raise ValueError(f"path_end must be one of {PATH_ENDS}, got {path_end!r}")
     cfg = config or PathTaskConfig()
     policy = _load_policy_dir(policy_dir, device)
-    if steering_trim is not None:  # overrides the policy's calibrated trim (checked by AmpPolicy)
-        policy.steering_trim = steering_trim
+    if steering_trim is not None or symmetric is not None:  # checked by AmpPolicy
+        policy.override(steering_trim, symmetric)
     obs_dim = _base_obs_dim(cfg)
     if getattr(policy, "obs_dim", obs_dim) not in (obs_dim, obs_dim + N_RAYS):
         raise ValueError(
@@ -494,6 +497,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--batch-size", type=int, default=DEFAULT_BATCH)
     parser.add_argument("--steering-trim", type=float, default=None,
                         help="rad; overrides the policy's steering trim (0 = off; default: the policy's own)")
+    parser.add_argument("--symmetric", action="store_true",
+                        help="make the policy left/right symmetric (averaged with its mirror image; drops the trim)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     parser.add_argument("--per-clip", action="store_true", help="include the per-clip results")
@@ -501,7 +506,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         result = track_clips(args.policy_dir, args.motions, _parse_clips(args.clips), args.max_seconds, args.seed,
                              fail_threshold=args.fail_threshold, stop_on_failure=not args.no_stop_on_failure,
-                             batch_size=args.batch_size, path_end=args.path_end, steering_trim=args.steering_trim)
+                             batch_size=args.batch_size, path_end=args.path_end, steering_trim=args.steering_trim,
+                             symmetric=True if args.symmetric else None)
     except (FileNotFoundError, ValueError, TypeError) as e:
         parser.exit(2, f"error: {e}\n")
     if not args.per_clip:

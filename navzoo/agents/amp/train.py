@@ -69,6 +69,8 @@ class TrainArgs:
     disc_grad_penalty: float = 5.0
     disc_logit_reg: float = 0.05
     disc_weight_decay: float = 1e-4
+    # weight of the mirror-symmetry loss on the actor (AmpConfig.mirror_coef; 0 = off)
+    mirror_coef: float = 0.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -102,7 +104,7 @@ def run(args: TrainArgs) -> dict[str, Any]:
                        rollout_steps=args.rollout_steps, minibatch_size=args.minibatch_size,
                        ckpt_replay_rows=args.ckpt_replay_rows, disc_lr=args.disc_lr,
                        disc_grad_penalty=args.disc_grad_penalty, disc_logit_reg=args.disc_logit_reg,
-                       disc_weight_decay=args.disc_weight_decay)
+                       disc_weight_decay=args.disc_weight_decay, mirror_coef=args.mirror_coef)
     device = args.device if args.device != "cuda" or torch.cuda.is_available() else "cpu"
     (out / "train_args.json").write_text(json.dumps({**dataclasses.asdict(args), "task": dataclasses.asdict(task),
                                                      "learner": config.to_dict()}, indent=2, default=str))
