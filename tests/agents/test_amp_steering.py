@@ -112,6 +112,7 @@ def test_calibration_writes_a_trim_that_loads(tmp_path: Path, capsys) -> None:
     assert cfg["steering_trim"]["rad"] == result["rad"]
     assert cfg["steering_trim"]["calibration"]["path_error_m"] == result["path_error_m"]
     assert "--write" in cfg["steering_trim"]["calibration"]["command"]
+    assert cfg["steering_trim"]["off_for_crowd_models"] == cfg_before["steering_trim"]["off_for_crowd_models"]
     assert load_policy(pol).steering_trim == result["rad"]
     # refused before anything runs: a trim beyond the limit, an evaluation scene
     assert main(["--policy", str(pol), "--trims", "0:1:0.5"]) == 2
@@ -128,6 +129,30 @@ def test_pedestrian_policy_can_override_the_trim(tmp_path: Path) -> None:
     for bad in (0.7, float("inf")):
         with pytest.raises(ValueError, match="steering_trim must be finite"):
             AmpPedestrianPolicy(pol, steering_trim=bad)
+
+
+def test_config_trim_is_not_applied_to_the_crowd_models_it_names(tmp_path: Path) -> None:
+    """The shipped trim is off in diffusion crowds (measured harmful there), on in social-force ones;
+    an explicit trim applies in both; a malformed list is refused naming the config."""
+    from navzoo.agents.amp.pedestrian_policy import AmpPedestrianPolicy
+    from navzoo.envs.nav_env import NavEnv
+
+    shipped = AmpPedestrianPolicy()
+    trim = shipped.policy.steering_trim
+    assert trim > 0 and "diffusion" in shipped.policy.config["steering_trim"]["off_for_crowd_models"]
+    envs = {m: NavEnv(scene="lobby", n_robots=0, n_humans=1, human_model="amp", crowd_model=m)
+            for m in ("diffusion", "sfm")}
+    for model, want in (("diffusion", 0.0), ("sfm", trim), ("diffusion", 0.0)):
+        shipped.reset(envs[model])
+        assert shipped.policy.steering_trim == want, model
+    explicit = AmpPedestrianPolicy(steering_trim=0.05)
+    explicit.reset(envs["diffusion"])
+    assert explicit.policy.steering_trim == 0.05
+    for env in envs.values():
+        env.close()
+    pol = _policy(tmp_path, steering_trim={"rad": 0.1, "off_for_crowd_models": "diffusion"})
+    with pytest.raises(ValueError, match="off_for_crowd_models must be a list"):
+        AmpPedestrianPolicy(pol)
 
 
 def test_tracking_takes_a_trim_override() -> None:

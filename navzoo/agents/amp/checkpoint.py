@@ -277,6 +277,10 @@ def export_policy_files(
 
 #: Largest steering trim (rad) an exported policy may carry (:mod:`navzoo.agents.amp.steering`).
 MAX_STEERING_TRIM = 0.5
+#: Key of a policy config's ``steering_trim`` object listing crowd models (``NavConfig.crowd_model``)
+#: whose target trajectories the trim is not applied to (it was calibrated on social-force targets and
+#: measured to hurt others); read by :class:`navzoo.agents.amp.pedestrian_policy.AmpPedestrianPolicy`.
+TRIM_OFF_KEY = "off_for_crowd_models"
 
 
 def waypoint_layout(obs_dim: int, config: dict[str, Any] | None = None) -> tuple[int, int]:

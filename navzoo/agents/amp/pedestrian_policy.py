@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from navzoo.agents.amp.checkpoint import load_policy
+from navzoo.agents.amp.checkpoint import TRIM_OFF_KEY, load_policy
 
 if TYPE_CHECKING:
     from navzoo.envs.nav_env import NavEnv
@@ -31,7 +31,10 @@ class AmpPedestrianPolicy:
         policy_dir: exported policy (``config.json`` + weights); default: the shipped one.
         device: torch device of the forward pass.
         steering_trim: rad; overrides the policy's calibrated steering trim (``0.0`` turns it off;
-            None keeps the config's, see :mod:`navzoo.agents.amp.steering`).
+            None keeps the config's, see :mod:`navzoo.agents.amp.steering`). The config's trim is not
+            applied in envs whose ``crowd_model`` its ``off_for_crowd_models`` list names (the shipped
+            policy: ``diffusion``, where it was measured to lower success and raise falls); an explicit
+            ``steering_trim`` applies everywhere.
         symmetric: make the policy left/right symmetric (:mod:`navzoo.agents.amp.symmetry`; drops
             the trim); None keeps the config's setting.
     """
@@ -42,6 +45,13 @@ class AmpPedestrianPolicy:
         self.policy = load_policy(self.policy_dir, device=device)
         if steering_trim is not None or symmetric is not None:
             self.policy.override(steering_trim, symmetric)  # checked by AmpPolicy
+        trim_cfg = self.policy.config.get("steering_trim") if hasattr(self.policy, "config") else None
+        off = (trim_cfg or {}).get(TRIM_OFF_KEY, [])
+        if not (isinstance(off, list) and all(isinstance(m, str) for m in off)):
+            raise ValueError(f"{self.policy_dir}/config.json: steering_trim.{TRIM_OFF_KEY} must be a list of "
+                             f"crowd model names, got {off!r}")
+        #: the config's trim, and the crowd models it is not applied to (None: the trim was overridden)
+        self._config_trim = None if (steering_trim is not None or symmetric) else (self.policy.steering_trim, set(off))
 
     def reset(self, env: NavEnv) -> None:
         if env.config.human_model != "amp":
@@ -51,6 +61,9 @@ class AmpPedestrianPolicy:
         have = env.observation_space(env.possible_agents[-1]).shape[0] if env.n_humans else want
         if want is not None and want != have:
             raise ValueError(f"policy {self.policy_dir} takes {want} inputs, the env's pedestrians observe {have}")
+        if self._config_trim is not None:
+            trim, off = self._config_trim
+            self.policy.steering_trim = 0.0 if env.config.crowd_model in off else trim
 
     def act(self, observations: dict[str, Any], env: NavEnv) -> dict[str, np.ndarray]:
         names = list(observations)

@@ -31,7 +31,13 @@ from typing import Any
 
 import numpy as np
 
-from navzoo.agents.amp.checkpoint import MAX_STEERING_TRIM, POLICY_CONFIG, atomic_write_text, load_policy
+from navzoo.agents.amp.checkpoint import (
+    MAX_STEERING_TRIM,
+    POLICY_CONFIG,
+    TRIM_OFF_KEY,
+    atomic_write_text,
+    load_policy,
+)
 
 
 def parse_trims(text: str) -> list[float]:
@@ -107,8 +113,9 @@ def write_trim(policy_dir: str | Path, result: dict[str, Any], command: str) -> 
     cfg = json.loads(path.read_text())
     policy = load_policy(path.parent)  # checks the policy before anything is written
     start, k = policy.waypoints
+    kept = {key: v for key, v in (cfg.get("steering_trim") or {}).items() if key == TRIM_OFF_KEY}
     cfg["steering_trim"] = {
-        "rad": result["rad"], "waypoint_start": start, "n_waypoints": k,
+        **kept, "rad": result["rad"], "waypoint_start": start, "n_waypoints": k,
         "calibration": {**{key: result[key] for key in ("scene", "people", "seconds", "seed", "trims",
                                                          "path_error_m", "trips")},
                         "command": command, "date": time.strftime("%Y-%m-%d")},
