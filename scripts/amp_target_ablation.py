@@ -11,6 +11,8 @@ FALLEN = 1, ``NavConfig.human_fallen_obstacles`` (people plan around fallen bodi
 FALLEN may instead name boolean NavConfig flags to turn on, joined by ``+`` (e.g.
 ``human_door_entries+human_fallen_obstacles``). A seventh field TRIM sets the AMP policy's steering
 trim in rad (``AmpPolicy.steering_trim``; left out = the policy's own, see ``navzoo train amp-trim``).
+An eighth field POLICY names an exported AMP policy directory (left out = the shipped one); an empty
+TRIM field keeps that policy's own trim.
 ``--scenes`` picks some of the 8 scenes (each keeps its people count).
 
     python scripts/amp_target_ablation.py --configs before:0.1:0.1:0,now:0.1:0:4 --seconds 200 \
@@ -29,13 +31,16 @@ from pathlib import Path
 
 def parse_config(text: str) -> dict:
     parts = text.split(":")
-    if len(parts) not in (4, 5, 6, 7):
-        raise ValueError("a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN[:TRIM]]], "
+    if len(parts) not in (4, 5, 6, 7, 8):
+        raise ValueError("a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN[:TRIM[:POLICY]]]], "
                          f"got {text!r}")
     name, plan, wall, ahead = parts[:4]
     cfg = {"name": name, "plan_margin": float(plan), "wall_margin": float(wall), "lookahead": int(ahead),
            "turn_rate": float(parts[4]) if len(parts) >= 5 else 0.0,
-           "trim": float(parts[6]) if len(parts) == 7 else None}
+           "trim": float(parts[6]) if len(parts) >= 7 and parts[6] else None,
+           "policy": parts[7] if len(parts) == 8 else None}
+    if cfg["policy"] is not None and not (Path(cfg["policy"]) / "config.json").is_file():
+        raise ValueError(f"no exported AMP policy (config.json) in {cfg['policy']!r}, in {text!r}")
     flags = parts[5].strip() if len(parts) >= 6 else "0"
     cfg["env_flags"] = [] if flags == "0" else ["human_fallen_obstacles"] if flags == "1" else flags.split("+")
     from navzoo.envs.config import NavConfig
@@ -66,11 +71,11 @@ def _run(job: tuple[dict, str, int, float, int]) -> dict:
     from navzoo.benchmark.pedestrians import follow_scene
 
     row = follow_scene(scene, n, seconds, seed, env_overrides=dict.fromkeys(cfg["env_flags"], True),
-                       steering_trim=cfg.get("trim"))
+                       steering_trim=cfg.get("trim"), policy_dir=cfg.get("policy"))
     row.pop("poses")
     return {"config": cfg["name"],
             **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles", "env_flags",
-                                   "trim")},
+                                   "trim", "policy")},
             "seed": seed, **row}
 
 

@@ -22,8 +22,13 @@ from navzoo.agents.amp.train import locomotion_reference
 
 
 def evaluate(policy_dir: str, envs: int = 16, seconds: float = 30.0, stage: int = 1, seed: int = 123,
-             pd_mode: str = "motor") -> dict[str, Any]:
+             pd_mode: str = "motor", steering_trim: float | None = None, symmetric: bool | None = None
+             ) -> dict[str, Any]:
+    """``steering_trim`` / ``symmetric`` override the policy's own settings (None keeps them; see
+    :meth:`navzoo.agents.amp.checkpoint.AmpPolicy.override`)."""
     policy = load_policy(policy_dir)
+    if steering_trim is not None or symmetric is not None:
+        policy.override(steering_trim, symmetric)
     rays = getattr(policy, "obs_dim", 0) == FEATURE_DIM + 2 * PathTaskConfig().n_waypoints + N_RAYS
     task = PathTaskConfig(stage=stage, rsi_prob=0.0, pd_mode=pd_mode, obstacle_obs=rays,
                           boxes_per_patch=4 if rays and stage == 3 else 0, pair_patches=rays and stage == 3)
@@ -66,9 +71,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=30.0)
     parser.add_argument("--stage", type=int, default=1)
     parser.add_argument("--seed", type=int, default=123)
+    parser.add_argument("--steering-trim", type=float, default=None, help="rad; overrides the policy's trim")
+    parser.add_argument("--symmetric", action="store_true", help="make the policy left/right symmetric")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
-    result = evaluate(args.policy_dir, args.envs, args.seconds, args.stage, args.seed)
+    result = evaluate(args.policy_dir, args.envs, args.seconds, args.stage, args.seed,
+                      steering_trim=args.steering_trim, symmetric=True if args.symmetric else None)
     print(json.dumps(result) if args.json else result)
     return 0
 
