@@ -45,8 +45,7 @@ class AmpPedestrianPolicy:
         self.policy = load_policy(self.policy_dir, device=device)
         if steering_trim is not None or symmetric is not None:
             self.policy.override(steering_trim, symmetric)  # checked by AmpPolicy
-        trim_cfg = self.policy.config.get("steering_trim") if hasattr(self.policy, "config") else None
-        off = (trim_cfg or {}).get(TRIM_OFF_KEY, [])
+        off = (self.policy.config.get("steering_trim") or {}).get(TRIM_OFF_KEY, [])
         if not (isinstance(off, list) and all(isinstance(m, str) for m in off)):
             raise ValueError(f"{self.policy_dir}/config.json: steering_trim.{TRIM_OFF_KEY} must be a list of "
                              f"crowd model names, got {off!r}")
