@@ -12,7 +12,9 @@ FALLEN may instead name boolean NavConfig flags to turn on, joined by ``+`` (e.g
 ``human_door_entries+human_fallen_obstacles``). A seventh field TRIM sets the AMP policy's steering
 trim in rad (``AmpPolicy.steering_trim``; left out = the policy's own, see ``navzoo train amp-trim``).
 An eighth field POLICY names an exported AMP policy directory (left out = the shipped one); an empty
-TRIM field keeps that policy's own trim.
+TRIM field keeps that policy's own trim. A ninth field ACCEL sets ``TARGET_ACCEL`` and ``DIFFUSION_TARGET_ACCEL`` (m/s², the
+rollouts' speed-up limit; 0 = off; left out = the module's defaults); empty TRIM and POLICY fields keep
+the policy's own. ``--crowd`` picks the crowd model that makes the targets (default ``sfm``).
 ``--scenes`` picks some of the 8 scenes (each keeps its people count).
 
     python scripts/amp_target_ablation.py --configs before:0.1:0.1:0,now:0.1:0:4 --seconds 200 \
@@ -31,14 +33,15 @@ from pathlib import Path
 
 def parse_config(text: str) -> dict:
     parts = text.split(":")
-    if len(parts) not in (4, 5, 6, 7, 8):
-        raise ValueError("a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN[:TRIM[:POLICY]]]], "
+    if len(parts) not in (4, 5, 6, 7, 8, 9):
+        raise ValueError("a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN[:TRIM[:POLICY[:ACCEL]]]]], "
                          f"got {text!r}")
     name, plan, wall, ahead = parts[:4]
     cfg = {"name": name, "plan_margin": float(plan), "wall_margin": float(wall), "lookahead": int(ahead),
            "turn_rate": float(parts[4]) if len(parts) >= 5 else 0.0,
            "trim": float(parts[6]) if len(parts) >= 7 and parts[6] else None,
-           "policy": parts[7] if len(parts) == 8 else None}
+           "policy": parts[7] if len(parts) >= 8 and parts[7] else None,
+           "accel": float(parts[8]) if len(parts) == 9 and parts[8] else None}
     if cfg["policy"] is not None and not (Path(cfg["policy"]) / "config.json").is_file():
         raise ValueError(f"no exported AMP policy (config.json) in {cfg['policy']!r}, in {text!r}")
     flags = parts[5].strip() if len(parts) >= 6 else "0"
@@ -49,18 +52,18 @@ def parse_config(text: str) -> dict:
         if not isinstance(getattr(NavConfig(), flag, None), bool):
             raise ValueError(f"{flag!r} is not a boolean NavConfig field, in {text!r}")
     cfg["fallen_obstacles"] = "human_fallen_obstacles" in cfg["env_flags"]
-    if min(cfg["plan_margin"], cfg["wall_margin"], cfg["lookahead"], cfg["turn_rate"]) < 0:
-        raise ValueError(f"margins, lookahead and turn rate must be >= 0, got {text!r}")
+    if min(cfg["plan_margin"], cfg["wall_margin"], cfg["lookahead"], cfg["turn_rate"], cfg["accel"] or 0.0) < 0:
+        raise ValueError(f"margins, lookahead, turn rate and acceleration must be >= 0, got {text!r}")
     if cfg["trim"] is not None and not abs(cfg["trim"]) <= 0.5:
         raise ValueError(f"the steering trim must be within ±0.5 rad, got {text!r}")
     return cfg
 
 
-def _run(job: tuple[dict, str, int, float, int]) -> dict:
+def _run(job: tuple[dict, str, int, float, int, str]) -> dict:
     import os
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    cfg, scene, n, seconds, seed = job
+    cfg, scene, n, seconds, seed, crowd = job
     import navzoo.envs.amp_humans as ah
     import navzoo.envs.nav_env as ne
 
@@ -68,15 +71,17 @@ def _run(job: tuple[dict, str, int, float, int]) -> dict:
     ah.WALL_PLAN_MARGIN = cfg["wall_margin"]
     ah.WAYPOINT_LOOKAHEAD = ne.WAYPOINT_LOOKAHEAD = cfg["lookahead"]
     ah.TARGET_TURN_RATE = cfg["turn_rate"]
+    if cfg.get("accel") is not None:
+        ah.TARGET_ACCEL = ah.DIFFUSION_TARGET_ACCEL = cfg["accel"]
     from navzoo.benchmark.pedestrians import follow_scene
 
     row = follow_scene(scene, n, seconds, seed, env_overrides=dict.fromkeys(cfg["env_flags"], True),
-                       steering_trim=cfg.get("trim"), policy_dir=cfg.get("policy"))
+                       steering_trim=cfg.get("trim"), policy_dir=cfg.get("policy"), crowd_model=crowd)
     row.pop("poses")
     return {"config": cfg["name"],
             **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles", "env_flags",
-                                   "trim", "policy")},
-            "seed": seed, **row}
+                                   "trim", "policy", "accel")},
+            "crowd": crowd, "seed": seed, **row}
 
 
 def summary(path: str) -> str:
@@ -102,6 +107,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", default="0")
     ap.add_argument("--scenes", default=None, help="comma-separated subset of the 8 scenes (default: all)")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--crowd", default="sfm", choices=("sfm", "orca", "diffusion"),
+                    help="crowd model that makes the target trajectories (default sfm)")
     ap.add_argument("--out", default="amp_target_ablation.jsonl")
     ap.add_argument("--summary", metavar="JSONL", help="print the table of a result file and exit")
     args = ap.parse_args(argv)
@@ -124,7 +131,7 @@ def main(argv: list[str] | None = None) -> int:
     unknown = sorted(set(scenes) - set(SCENES))
     if unknown:
         ap.error(f"unknown scenes {unknown}; choose from {list(SCENES)}")
-    jobs = [(c, s, people[s], args.seconds, seed) for seed in seeds for s in scenes for c in configs
+    jobs = [(c, s, people[s], args.seconds, seed, args.crowd) for seed in seeds for s in scenes for c in configs
             if (c["name"], s, seed) not in done]
     jobs.sort(key=lambda j: -j[2])  # crowded scenes first: they take longest
     print(f"{len(jobs)} runs ({len(done)} already in {out})", file=sys.stderr, flush=True)

@@ -98,3 +98,39 @@ def test_limit_turn_caps_the_heading_rate_and_slows_sharp_turns():
         v = limit_turn(v, np.array([[-1.2, 0.0]]), max_angle=0.2)
         steps += 1
     assert steps == int(np.ceil(np.pi / 0.2))
+
+
+def test_limit_accel_caps_the_speed_up_and_leaves_slowing_down_alone():
+    from navzoo.envs.amp_humans import limit_accel
+
+    v_prev = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 0.0], [0.3, 0.4]])
+    v_new = np.array([[0.0, 1.3], [0.2, 0.0], [1.05, 0.0], [0.0, 1.5]])
+    out = limit_accel(v_prev, v_new, max_dv=0.08)
+    np.testing.assert_allclose(out[0], [0.0, 0.08])  # from standstill: 0.08 m/s more, in the new direction
+    np.testing.assert_allclose(out[1], v_new[1])  # braking is not limited
+    np.testing.assert_allclose(out[2], v_new[2])  # within the limit
+    np.testing.assert_allclose(out[3], [0.0, 0.58])  # speed 0.5 -> 0.58, direction of v_new
+    assert out is not v_new and np.all(v_new[0] == [0.0, 1.3])  # the input is not changed
+
+
+def test_target_accel_limits_how_fast_a_rollout_speeds_up_from_the_body():
+    """With TARGET_ACCEL set, a standing person's social-force target covers no more ground in the first
+    second than a constant acceleration from rest would (0.5 a t^2), plus one plan step of slack."""
+    import navzoo.envs.amp_humans as ah
+    from navzoo.envs.nav_env import NavEnv
+
+    def first_second(accel: float) -> float:
+        old = ah.TARGET_ACCEL
+        ah.TARGET_ACCEL = accel
+        env = NavEnv(scene="station", n_robots=0, n_humans=1, human_model="amp", dt=1.0 / 30.0)
+        try:
+            env.reset(seed=0)
+            path = env.amp.paths[0]
+            return float(np.linalg.norm(path[ah.CONTROL_HZ] - path[0]))
+        finally:
+            ah.TARGET_ACCEL = old
+            env.close()
+
+    free, limited = first_second(0.0), first_second(0.8)
+    assert limited <= 0.5 * 0.8 * 1.0 ** 2 + 0.8 * ah.PLAN_DT + 1e-6
+    assert free > limited + 0.1

@@ -82,6 +82,14 @@ WAYPOINT_LOOKAHEAD = 4
 # success 0.33 -> 0.40 over two seeds; 1, 3 and 4 rad/s no gain). Diffusion-planned targets are left
 # as they were measured (not ablated yet).
 TARGET_TURN_RATE = 2.0
+# Social force speeds a disc up to its preferred speed within about a second (relaxation 0.5 s); a body
+# that stood or slowed (a yield, a new goal behind it, a push) speeds up more slowly and falls behind its
+# target in time while it stays on the target's path. The target rollouts of rule-based crowds therefore
+# raise a disc's speed by at most TARGET_ACCEL (m/s^2) from the body's speed at the replan (limit_accel);
+# slowing down is not limited; 0 = off. DIFFUSION_TARGET_ACCEL does the same for the rollouts toward
+# diffusion plans.
+TARGET_ACCEL = 0.0
+DIFFUSION_TARGET_ACCEL = 0.0
 # A physics pedestrian that yields in a bottleneck can hold its wait until the person it yielded to has
 # passed it, for at most this many more seconds (navzoo.agents.yielding, YieldParams.hold_max; 0 = off).
 # Off: 6 s measured worse on the following protocol (success 0.406 -> 0.353 at seed 0, 0.395 -> 0.338 at
@@ -109,6 +117,20 @@ def limit_turn(v_prev: np.ndarray, v_new: np.ndarray, max_angle: float, moving: 
     h = h_prev[limit] + np.sign(want[limit]) * max_angle
     speed = np.maximum(min_speed, sp_new[limit] * 0.5 * (1.0 + np.cos(want[limit])))
     out[limit] = speed[:, None] * np.stack([np.cos(h), np.sin(h)], axis=1)
+    return out
+
+
+def limit_accel(v_prev: np.ndarray, v_new: np.ndarray, max_dv: float) -> np.ndarray:
+    """Velocities ``v_new`` (N, 2) whose speed rose by at most ``max_dv`` (m/s) above ``v_prev``'s; the
+    direction is ``v_new``'s, and slowing down is not limited."""
+    sp_prev = np.linalg.norm(v_prev, axis=1)
+    sp_new = np.linalg.norm(v_new, axis=1)
+    cap = sp_prev + max_dv
+    fast = sp_new > cap
+    if not fast.any():
+        return v_new
+    out = v_new.copy()
+    out[fast] *= (cap[fast] / sp_new[fast])[:, None]
     return out
 
 
@@ -262,6 +284,9 @@ class AmpHumans:
                                       PLAN_DT, self.orca, env.segments, n_active=self.n)
             if TARGET_TURN_RATE > 0.0 and diffusion is None:
                 vel = limit_turn(prev_vel, vel, TARGET_TURN_RATE * PLAN_DT)
+            accel = TARGET_ACCEL if diffusion is None else DIFFUSION_TARGET_ACCEL
+            if accel > 0.0:
+                vel = limit_accel(prev_vel, vel, accel * PLAN_DT)
             prev_vel = vel
             pos = pos + PLAN_DT * vel
             out[:, k + 1] = pos
