@@ -97,6 +97,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_crowd_eval_arguments(esub.add_parser(
         "crowd", help="closed-loop crowds: realism vs ETH/UCY, pedestrian reliability table, replan and step cost"))
+    from navzoo.benchmark.matched_realism import add_arguments as add_matched_arguments
+
+    add_matched_arguments(esub.add_parser(
+        "crowd-matched", help="crowds walking the recorded people's starts and goals in their open scenes, vs the real tracks"))
     from navzoo.perception.evaluate import add_arguments as add_perception_eval_arguments
 
     add_perception_eval_arguments(esub.add_parser(
@@ -181,6 +185,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                 from navzoo.benchmark.crowd_eval import run_cli as run_crowd_cli
 
                 return run_crowd_cli(args)
+            if args.eval_command == "crowd-matched":
+                from navzoo.benchmark.matched_realism import run_cli as run_matched_cli
+
+                return run_matched_cli(args)
             if args.eval_command == "perception":
                 from navzoo.perception.evaluate import run_cli as run_perception_cli
 

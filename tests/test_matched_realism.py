@@ -1,0 +1,76 @@
+"""Matched-start realism (navzoo eval crowd-matched): scenarios from the recordings and their simulation."""
+
+import json
+
+import numpy as np
+import pytest
+
+from navzoo.benchmark import matched_realism as mr
+from navzoo.benchmark.crowd_eval import STEP
+
+
+def test_scenarios_start_and_end_where_the_real_people_do():
+    from navzoo.agents.replay import load_recording
+
+    rec = load_recording("zara1")
+    scs = mr.scenarios("zara1", every=30.0, max_scenarios=3)
+    assert 1 <= len(scs) <= 3
+    for sc in scs:
+        n = len(sc["starts"])
+        assert sc["goals"].shape == (n, 2) and sc["walker"].shape == (n,) and sc["walker"].any()
+        present = rec.positions_at(sc["t"])
+        for j, seg in enumerate(sc["real"]):
+            np.testing.assert_allclose(seg[0], sc["starts"][j])
+            assert len(seg) - 1 <= round(12.0 / STEP) and (len(seg) - 1) * STEP >= 4.8 - 1e-9
+            # every start is a recorded position at the scenario's time
+            assert min(np.linalg.norm(p - seg[0]) for p in present.values()) < 1e-9
+            if sc["walker"][j]:
+                np.testing.assert_allclose(seg[-1], sc["goals"][j])
+                assert np.linalg.norm(seg[-1] - seg[0]) >= 2.0
+                assert 0.3 <= sc["v_pref"][j] <= 2.0
+            else:
+                np.testing.assert_allclose(sc["goals"][j], sc["starts"][j])
+    # thinning keeps the first and the last start time
+    every = mr.scenarios("zara1", every=30.0)
+    assert scs[0]["t"] == every[0]["t"] and scs[-1]["t"] == every[-1]["t"]
+
+
+def test_scenario_arguments_are_checked():
+    with pytest.raises(ValueError, match="every"):
+        mr.scenarios("zara1", every=0.0)
+    with pytest.raises(ValueError, match="unknown crowd"):
+        mr.evaluate(crowds=["nope"])
+
+
+def _line_scenario(speed: float = 1.0, length: float = 6.0) -> mr.Scenario:
+    k = int(round(length / speed / STEP))
+    seg = np.stack([np.linspace(-3.0, -3.0 + length, k + 1), np.zeros(k + 1)], axis=1)
+    fine = np.arange(int(round(12.0 / mr.SIM_DT)) + 1) * mr.SIM_DT
+    real_pos = np.stack([np.interp(fine, STEP * np.arange(k + 1), seg[:, 0]), np.zeros_like(fine)], axis=1)[:, None]
+    return mr.Scenario(recording="eth", t=0.0, starts=seg[:1].copy(), goals=seg[-1:].copy(), walker=np.array([True]),
+                       v_pref=np.array([speed]), real=[seg], real_present=(fine <= k * STEP + 1e-9)[:, None],
+                       real_pos=real_pos)
+
+
+def test_a_lone_walker_crosses_like_the_straight_real_walk():
+    """Social force, alone in the open ETH scene, walks a straight 6 m at the real 1 m/s: it arrives,
+    in about the real time (it starts from rest), stays near the real positions, and walks smoothly."""
+    row = mr.run_scenario("sfm", _line_scenario(), seed=0)
+    assert row["walkers"] == 1 and row["arrived"] == 1
+    assert 0.9 <= row["ratio"][0] <= 1.4
+    assert row["ade"][0] < 0.6 and row["fde"][0] < 0.6
+    assert row["sim"]["speed"].mean() == pytest.approx(1.0, abs=0.15)
+    assert row["sim"]["accel"].mean() < 0.3
+    assert row["real"]["accel"].max() < 1e-9  # the real walk is straight at constant speed
+    assert row["sim_hits"][0] == 0 and row["real_hits"][0] == 0
+
+
+def test_cli_quick_prints_every_key(capsys):
+    from navzoo.cli import main
+
+    assert main(["eval", "crowd-matched", "--quick", "--crowds", "sfm", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("speed_mean", "speed_w1", "accel_w1", "jerk_w1", "ade_m", "fde_m", "arrival_rate", "time_ratio",
+                "collision_rate", "walkers"):
+        assert key in out["sfm"]
+    assert out["settings"]["scenarios"] == 2 and out["real"]["samples"]["speed"] > 0
