@@ -40,6 +40,19 @@ def test_scenario_arguments_are_checked():
         mr.scenarios("zara1", every=0.0)
     with pytest.raises(ValueError, match="unknown crowd"):
         mr.evaluate(crowds=["nope"])
+    with pytest.raises(ValueError, match="unknown diffusion crowd setting.*lookahead"):
+        mr.evaluate(crowds=["diffusion"], diffusion_settings={"lookahead": 1.0})
+    with pytest.raises(ValueError, match="NAME=NUMBER"):
+        mr._settings("guidance_scale")
+
+
+def test_diffusion_settings_reach_the_crowd():
+    from types import SimpleNamespace
+
+    crowd = SimpleNamespace(weights=(1.0, 10.0, 10.0), guidance_scale=0.05, n_samples=4)
+    mr.apply_diffusion_settings(crowd, {"agent_weight": 3, "guidance_scale": 0.0, "n_samples": 2.0})
+    assert crowd.weights == (1.0, 3.0, 10.0) and crowd.guidance_scale == 0.0
+    assert crowd.n_samples == 2 and isinstance(crowd.n_samples, int)
 
 
 def _line_scenario(speed: float = 1.0, length: float = 6.0) -> mr.Scenario:

@@ -60,7 +60,8 @@ from navzoo.benchmark.crowd_eval import (
     kinematics,
 )
 
-__all__ = ["RECORDINGS", "Scenario", "scenarios", "run_scenario", "evaluate", "markdown", "add_arguments", "run_cli"]
+__all__ = ["DIFFUSION_SETTINGS", "RECORDINGS", "Scenario", "apply_diffusion_settings", "scenarios", "run_scenario",
+           "evaluate", "markdown", "add_arguments", "run_cli"]
 
 #: The recordings of the shared data set (``navzoo/assets/tracks``).
 RECORDINGS = ("eth", "univ", "zara1", "zara3", "uni_examples")
@@ -121,9 +122,28 @@ def scenarios(recording: str, every: float = 20.0, horizon: float = 12.0, min_re
     return out
 
 
-def run_scenario(crowd: str, sc: Scenario, seed: int = 0, skip: float = 2.0) -> dict[str, Any]:
+DIFFUSION_SETTINGS = ("n_samples", "replan_s", "guidance_scale", "path_weight", "blend_s", "smooth_weight",
+                      "agent_buffer", "target_weight", "agent_weight", "map_weight")
+
+
+def apply_diffusion_settings(crowd: Any, settings: dict[str, float] | None) -> None:
+    """Set attributes of a :class:`~navzoo.agents.diffusion.crowd.DiffusionCrowd` (any of
+    :data:`DIFFUSION_SETTINGS`; the three guidance weights are kept as one tuple)."""
+    settings = dict(settings or {})
+    unknown = sorted(set(settings) - set(DIFFUSION_SETTINGS))
+    if unknown:
+        raise ValueError(f"unknown diffusion crowd setting(s) {unknown}; choose from {list(DIFFUSION_SETTINGS)}")
+    names = ("target_weight", "agent_weight", "map_weight")
+    crowd.weights = tuple(float(settings.pop(k, w)) for k, w in zip(names, crowd.weights, strict=True))
+    for key, value in settings.items():
+        setattr(crowd, key, type(getattr(crowd, key))(value))
+
+
+def run_scenario(crowd: str, sc: Scenario, seed: int = 0, skip: float = 2.0,
+                 diffusion_settings: dict[str, float] | None = None) -> dict[str, Any]:
     """Simulate one scenario with ``crowd``; returns the walkers' kinematics samples (sim and real),
-    errors, arrivals and collision counts (see the module doc)."""
+    errors, arrivals and collision counts (see the module doc). ``diffusion_settings`` change the
+    diffusion crowd's attributes (:func:`apply_diffusion_settings`)."""
     from navzoo.agents.crowd import CrowdPolicy
     from navzoo.envs.nav_env import NavEnv
     from navzoo.envs.wrappers import FrozenAgents
@@ -137,6 +157,7 @@ def run_scenario(crowd: str, sc: Scenario, seed: int = 0, skip: float = 2.0) -> 
     wrapped.reset(seed=seed, options={"human_starts": sc["starts"], "human_goals": sc["goals"]})
     env.v_pref[env.n_robots:] = sc["v_pref"]
     if env.diffusion is not None:  # its walking-in histories use the preferred speeds
+        apply_diffusion_settings(env.diffusion, diffusion_settings)
         env.diffusion.reset(env)
     h = slice(env.n_robots, env.n_total)
     walker = sc["walker"]
@@ -186,16 +207,16 @@ def run_scenario(crowd: str, sc: Scenario, seed: int = 0, skip: float = 2.0) -> 
             "sim_hits": sim_hits, "real_hits": real_hits, "sim_seconds": float(times[-1])}
 
 
-def _job(job: tuple[str, Scenario, int]) -> dict[str, Any]:
+def _job(job: tuple[str, Scenario, int, dict[str, float] | None]) -> dict[str, Any]:
     import os
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     import torch
 
     torch.set_num_threads(1)
-    crowd, sc, seed = job
+    crowd, sc, seed, settings = job
     t0 = time.time()
-    row = run_scenario(crowd, sc, seed)
+    row = run_scenario(crowd, sc, seed, diffusion_settings=settings)
     print(f"matched {crowd} {sc['recording']} t={sc['t']:.0f} s: {row['walkers']} walkers of {row['people']}, "
           f"ADE {np.mean(row['ade']):.2f} m, arrived {row['arrived']}, {time.time() - t0:.0f} s",
           file=sys.stderr, flush=True)
@@ -222,23 +243,37 @@ def _pool(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "walkers": walkers, "scenarios": len(rows),
         "samples": {q: int(sim[q].size) for q in QUANTITIES},
     })
+    per: dict[str, Any] = {}
+    for name in dict.fromkeys(r["recording"] for r in rows):
+        rs = [r for r in rows if r["recording"] == name]
+        n = sum(r["walkers"] for r in rs)
+        per[name] = {"walkers": n, "ade_m": float(np.mean([x for r in rs for x in r["ade"]])),
+                     "arrival_rate": sum(r["arrived"] for r in rs) / max(1, n),
+                     **{f"{q}_mean": float(np.concatenate([r["sim"][q] for r in rs]).mean())
+                        if sum(r["sim"][q].size for r in rs) else float("nan") for q in ("speed", "accel")},
+                     **{f"real_{q}_mean": float(np.concatenate([r["real"][q] for r in rs]).mean())
+                        if sum(r["real"][q].size for r in rs) else float("nan") for q in ("speed", "accel")}}
+    out["per_recording"] = per
     return out
 
 
 def evaluate(crowds: Sequence[str] = ("diffusion", "sfm", "orca"), recordings: Sequence[str] = RECORDINGS,
              every: float = 20.0, max_scenarios: int | None = 8, seed: int = 0, workers: int = 1,
-             quick: bool = False) -> dict[str, Any]:
+             quick: bool = False, diffusion_settings: dict[str, float] | None = None) -> dict[str, Any]:
     """Run every crowd on the scenarios of every recording; the table's rows (see the module doc)."""
     unknown = sorted(set(crowds) - set(CROWDS))
     if unknown:
         raise ValueError(f"unknown crowd model(s) {unknown}; choose from {list(CROWDS)}")
+    bad = sorted(set(diffusion_settings or {}) - set(DIFFUSION_SETTINGS))
+    if bad:
+        raise ValueError(f"unknown diffusion crowd setting(s) {bad}; choose from {list(DIFFUSION_SETTINGS)}")
     if quick:
         recordings, max_scenarios = tuple(recordings)[:2], 1
     t0 = time.time()
     scs = [sc for name in recordings for sc in scenarios(name, every, max_scenarios=max_scenarios)]
     if not scs:
         raise ValueError(f"no scenario in recordings {list(recordings)} (every {every} s)")
-    jobs = [(c, sc, seed) for c in crowds for sc in scs]
+    jobs = [(c, sc, seed, diffusion_settings) for c in crowds for sc in scs]
     jobs.sort(key=lambda j: -len(j[1]["starts"]))  # crowded scenarios first: they take longest
     if workers > 1:
         with mp.get_context("spawn").Pool(workers, maxtasksperchild=4) as pool:
@@ -256,6 +291,7 @@ def evaluate(crowds: Sequence[str] = ("diffusion", "sfm", "orca"), recordings: S
     result["settings"] = {"recordings": list(recordings), "every_s": every, "max_scenarios": max_scenarios,
                           "scenarios": len(scs), "seed": seed, "quick": quick, "skip_s": 2.0, "horizon_s": 12.0,
                           "min_walk_m": 2.0, "sim_dt": SIM_DT, "step_s": STEP,
+                          "diffusion_settings": dict(diffusion_settings or {}),
                           "per_recording": {name: sum(sc["recording"] == name for sc in scs) for name in
                                             dict.fromkeys(sc["recording"] for sc in scs)}}
     from navzoo.benchmark.crowd_eval import _machine
@@ -298,13 +334,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=1, help="processes (default 1)")
     parser.add_argument("--quick", action="store_true", help="2 recordings, 1 scenario each")
+    parser.add_argument("--diffusion-set", default="", metavar="K=V,...",
+                        help=f"diffusion crowd settings, e.g. guidance_scale=0.025 (any of {', '.join(DIFFUSION_SETTINGS)})")
     parser.add_argument("--json", action="store_true", help="print JSON instead of the table")
     parser.add_argument("--out", default=None, help="also write the JSON result here")
 
 
+def _settings(text: str) -> dict[str, float]:
+    out = {}
+    for part in filter(None, (p.strip() for p in text.split(","))):
+        key, sep, value = part.partition("=")
+        try:
+            out[key.strip()] = float(value)
+        except ValueError:
+            sep = ""
+        if not sep:
+            raise ValueError(f"--diffusion-set takes NAME=NUMBER pairs, got {part!r}")
+    return out
+
+
 def run_cli(args: argparse.Namespace) -> int:
     result = evaluate([c for c in args.crowds.split(",") if c], [r for r in args.recordings.split(",") if r],
-                      args.every, args.max_scenarios, args.seed, args.workers, args.quick)
+                      args.every, args.max_scenarios, args.seed, args.workers, args.quick,
+                      _settings(args.diffusion_set))
     text = json.dumps(result, default=_default, indent=1)
     if args.out:
         from pathlib import Path

@@ -139,3 +139,26 @@ def test_new_goal_replans_only_that_person_and_plans_blend(model_dir):
         DiffusionCrowd(TrajectoryDiffusion(CFG), blend_s=-1.0)
     with pytest.raises(ValueError, match="smooth_weight"):
         DiffusionCrowd(TrajectoryDiffusion(CFG), smooth_weight=-1.0)
+
+
+def test_agent_buffer_sets_the_people_guidance_clearance(model_dir, monkeypatch):
+    import navzoo.agents.diffusion.crowd as dc
+
+    seen = []
+    original = dc.agent_collision_cost
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs.get("buffer"))
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(dc, "agent_collision_cost", spy)
+    env = NavEnv(scene="lobby", n_robots=0, n_humans=3, crowd_model="diffusion", diffusion_model=str(model_dir),
+                 diffusion_samples=1, time_limit=2.0)
+    env.reset(seed=0)
+    assert env.diffusion.agent_buffer == 0.2  # TRACE's clearance by default
+    env.diffusion.agent_buffer = 0.05
+    env.diffusion.plan_now(env)
+    assert seen and seen[-1] == 0.05
+    env.close()
+    with pytest.raises(ValueError, match="agent_buffer"):
+        DiffusionCrowd(TrajectoryDiffusion(CFG), agent_buffer=-0.1)

@@ -145,6 +145,8 @@ class DiffusionCrowd:
         smooth_weight: weight of a smoothness guidance cost (squared second differences of the plan,
             from the last two history points); 0 = off. The ablation in docs/crowd.md ("Where the
             roughness comes from") found no setting that smooths the walk without losing goals.
+        agent_buffer: clearance (m) beyond two body radii that the people guidance keeps between plans
+            (TRACE's 0.2 m).
         k_neighbors, neighbor_radius: neighbours given to the model.
         seed: seed of the sampling noise (with the env's step count, so replays are exact).
         device: torch device of the model.
@@ -154,7 +156,8 @@ class DiffusionCrowd:
                  replan_s: float = 2.0, guidance_scale: float = 0.05, target_weight: float = 1.0,
                  agent_weight: float = 10.0, map_weight: float = 10.0, k_neighbors: int = 16,
                  neighbor_radius: float = 10.0, seed: int = 0, device: str = "cpu",
-                 path_weight: float = 20.0, blend_s: float = 1.2, smooth_weight: float = 0.0) -> None:
+                 path_weight: float = 20.0, blend_s: float = 1.2, smooth_weight: float = 0.0,
+                 agent_buffer: float = 0.2) -> None:
         if model is None or isinstance(model, (str, Path)):
             from navzoo.agents.diffusion.trainer import load_model
 
@@ -185,6 +188,9 @@ class DiffusionCrowd:
         if not smooth_weight >= 0:
             raise ValueError(f"smooth_weight must be >= 0, got {smooth_weight!r}")
         self.smooth_weight = float(smooth_weight)
+        if not agent_buffer >= 0:
+            raise ValueError(f"agent_buffer must be >= 0, got {agent_buffer!r}")
+        self.agent_buffer = float(agent_buffer)
         self.n = 0
 
     # ------------------------------------------------------------------ state
@@ -299,7 +305,8 @@ class DiffusionCrowd:
             o_pos, o_mask = others_w
             o_local = fdata.to_local(o_pos.reshape(B, -1, 2), local).reshape(o_pos.shape)
             costs.append(agent_collision_cost(torch.as_tensor(o_local, dtype=torch.float32), torch.as_tensor(o_mask),
-                                              radius=2 * (float(env.config.human_radius) + margin), weight=a_w))
+                                              radius=2 * (float(env.config.human_radius) + margin),
+                                              buffer=self.agent_buffer, weight=a_w))
         n_cells = 32
         offs = (np.arange(n_cells) + 0.5 - n_cells / 2) * (MAP_EXTENT / n_cells)
         lx, ly = np.meshgrid(offs, offs)
