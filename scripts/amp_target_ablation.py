@@ -14,7 +14,9 @@ trim in rad (``AmpPolicy.steering_trim``; left out = the policy's own, see ``nav
 An eighth field POLICY names an exported AMP policy directory (left out = the shipped one); an empty
 TRIM field keeps that policy's own trim. A ninth field ACCEL sets ``TARGET_ACCEL`` and ``DIFFUSION_TARGET_ACCEL`` (m/s², the
 rollouts' speed-up limit; 0 = off; left out = the module's defaults); empty TRIM and POLICY fields keep
-the policy's own. ``--crowd`` picks the crowd model that makes the targets (default ``sfm``).
+the policy's own. ``--crowd`` picks the crowd model that makes the targets (default ``sfm``), and
+``--diffusion-set K=V,...`` changes the diffusion crowd's settings in every run (names as in
+``navzoo eval crowd-matched --diffusion-set``).
 ``--scenes`` picks some of the 8 scenes (each keeps its people count).
 
     python scripts/amp_target_ablation.py --configs before:0.1:0.1:0,now:0.1:0:4 --seconds 200 \
@@ -59,11 +61,22 @@ def parse_config(text: str) -> dict:
     return cfg
 
 
-def _run(job: tuple[dict, str, int, float, int, str]) -> dict:
+def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
     import os
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    cfg, scene, n, seconds, seed, crowd = job
+    cfg, scene, n, seconds, seed, crowd, diffusion_settings = job
+    if diffusion_settings:  # every DiffusionCrowd this process builds gets the settings
+        from navzoo.agents.diffusion.crowd import DiffusionCrowd
+        from navzoo.benchmark.matched_realism import apply_diffusion_settings
+
+        init = DiffusionCrowd.__init__
+
+        def patched(self, *args, **kwargs):
+            init(self, *args, **kwargs)
+            apply_diffusion_settings(self, diffusion_settings)
+
+        DiffusionCrowd.__init__ = patched
     import navzoo.envs.amp_humans as ah
     import navzoo.envs.nav_env as ne
 
@@ -81,7 +94,7 @@ def _run(job: tuple[dict, str, int, float, int, str]) -> dict:
     return {"config": cfg["name"],
             **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles", "env_flags",
                                    "trim", "policy", "accel")},
-            "crowd": crowd, "seed": seed, **row}
+            "crowd": crowd, "diffusion_settings": diffusion_settings, "seed": seed, **row}
 
 
 def summary(path: str) -> str:
@@ -109,6 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--crowd", default="sfm", choices=("sfm", "orca", "diffusion"),
                     help="crowd model that makes the target trajectories (default sfm)")
+    ap.add_argument("--diffusion-set", default="", metavar="K=V,...", help="diffusion crowd settings for every run")
     ap.add_argument("--out", default="amp_target_ablation.jsonl")
     ap.add_argument("--summary", metavar="JSONL", help="print the table of a result file and exit")
     args = ap.parse_args(argv)
@@ -131,7 +145,13 @@ def main(argv: list[str] | None = None) -> int:
     unknown = sorted(set(scenes) - set(SCENES))
     if unknown:
         ap.error(f"unknown scenes {unknown}; choose from {list(SCENES)}")
-    jobs = [(c, s, people[s], args.seconds, seed, args.crowd) for seed in seeds for s in scenes for c in configs
+    from navzoo.benchmark.matched_realism import DIFFUSION_SETTINGS, _settings
+
+    diffusion_settings = _settings(args.diffusion_set)
+    bad = sorted(set(diffusion_settings) - set(DIFFUSION_SETTINGS))
+    if bad:
+        ap.error(f"unknown diffusion crowd setting(s) {bad}; choose from {list(DIFFUSION_SETTINGS)}")
+    jobs = [(c, s, people[s], args.seconds, seed, args.crowd, diffusion_settings) for seed in seeds for s in scenes for c in configs
             if (c["name"], s, seed) not in done]
     jobs.sort(key=lambda j: -j[2])  # crowded scenes first: they take longest
     print(f"{len(jobs)} runs ({len(done)} already in {out})", file=sys.stderr, flush=True)
