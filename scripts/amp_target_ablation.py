@@ -145,12 +145,12 @@ def main(argv: list[str] | None = None) -> int:
     unknown = sorted(set(scenes) - set(SCENES))
     if unknown:
         ap.error(f"unknown scenes {unknown}; choose from {list(SCENES)}")
-    from navzoo.benchmark.matched_realism import DIFFUSION_SETTINGS, _settings
+    from navzoo.benchmark.matched_realism import _settings, check_diffusion_settings
 
-    diffusion_settings = _settings(args.diffusion_set)
-    bad = sorted(set(diffusion_settings) - set(DIFFUSION_SETTINGS))
-    if bad:
-        ap.error(f"unknown diffusion crowd setting(s) {bad}; choose from {list(DIFFUSION_SETTINGS)}")
+    try:
+        diffusion_settings = check_diffusion_settings(_settings(args.diffusion_set))
+    except ValueError as exc:
+        ap.error(str(exc))
     jobs = [(c, s, people[s], args.seconds, seed, args.crowd, diffusion_settings) for seed in seeds for s in scenes for c in configs
             if (c["name"], s, seed) not in done]
     jobs.sort(key=lambda j: -j[2])  # crowded scenes first: they take longest

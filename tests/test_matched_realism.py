@@ -53,6 +53,9 @@ def test_diffusion_settings_reach_the_crowd():
     mr.apply_diffusion_settings(crowd, {"agent_weight": 3, "guidance_scale": 0.0, "n_samples": 2.0})
     assert crowd.weights == (1.0, 3.0, 10.0) and crowd.guidance_scale == 0.0
     assert crowd.n_samples == 2 and isinstance(crowd.n_samples, int)
+    for bad in ({"n_samples": 0.0}, {"replan_s": 0.0}, {"agent_buffer": -0.1}, {"guidance_scale": float("nan")}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            mr.apply_diffusion_settings(crowd, bad)
 
 
 def _line_scenario(speed: float = 1.0, length: float = 6.0) -> mr.Scenario:

@@ -60,7 +60,8 @@ from navzoo.benchmark.crowd_eval import (
     kinematics,
 )
 
-__all__ = ["DIFFUSION_SETTINGS", "RECORDINGS", "Scenario", "apply_diffusion_settings", "scenarios", "run_scenario",
+__all__ = ["DIFFUSION_SETTINGS", "RECORDINGS", "Scenario", "apply_diffusion_settings", "check_diffusion_settings",
+           "scenarios", "run_scenario",
            "evaluate", "markdown", "add_arguments", "run_cli"]
 
 #: The recordings of the shared data set (``navzoo/assets/tracks``).
@@ -126,13 +127,24 @@ DIFFUSION_SETTINGS = ("n_samples", "replan_s", "guidance_scale", "path_weight", 
                       "agent_buffer", "target_weight", "agent_weight", "map_weight")
 
 
-def apply_diffusion_settings(crowd: Any, settings: dict[str, float] | None) -> None:
-    """Set attributes of a :class:`~navzoo.agents.diffusion.crowd.DiffusionCrowd` (any of
-    :data:`DIFFUSION_SETTINGS`; the three guidance weights are kept as one tuple)."""
+def check_diffusion_settings(settings: dict[str, float] | None) -> dict[str, float]:
+    """A copy of ``settings`` after checking names (:data:`DIFFUSION_SETTINGS`) and values (finite;
+    ``n_samples`` >= 1, ``replan_s`` > 0, the rest >= 0); a ValueError names the first bad one."""
     settings = dict(settings or {})
     unknown = sorted(set(settings) - set(DIFFUSION_SETTINGS))
     if unknown:
         raise ValueError(f"unknown diffusion crowd setting(s) {unknown}; choose from {list(DIFFUSION_SETTINGS)}")
+    for key, value in settings.items():
+        low, strict = (1.0, False) if key == "n_samples" else (0.0, key == "replan_s")
+        if not (np.isfinite(value) and (value > low if strict else value >= low)):
+            raise ValueError(f"diffusion crowd setting {key}={value!r} must be {'>' if strict else '>='} {low:g}")
+    return settings
+
+
+def apply_diffusion_settings(crowd: Any, settings: dict[str, float] | None) -> None:
+    """Set attributes of a :class:`~navzoo.agents.diffusion.crowd.DiffusionCrowd` (any of
+    :data:`DIFFUSION_SETTINGS`; the three guidance weights are kept as one tuple)."""
+    settings = check_diffusion_settings(settings)
     names = ("target_weight", "agent_weight", "map_weight")
     crowd.weights = tuple(float(settings.pop(k, w)) for k, w in zip(names, crowd.weights, strict=True))
     for key, value in settings.items():
@@ -264,9 +276,7 @@ def evaluate(crowds: Sequence[str] = ("diffusion", "sfm", "orca"), recordings: S
     unknown = sorted(set(crowds) - set(CROWDS))
     if unknown:
         raise ValueError(f"unknown crowd model(s) {unknown}; choose from {list(CROWDS)}")
-    bad = sorted(set(diffusion_settings or {}) - set(DIFFUSION_SETTINGS))
-    if bad:
-        raise ValueError(f"unknown diffusion crowd setting(s) {bad}; choose from {list(DIFFUSION_SETTINGS)}")
+    diffusion_settings = check_diffusion_settings(diffusion_settings)
     if quick:
         recordings, max_scenarios = tuple(recordings)[:2], 1
     t0 = time.time()
