@@ -72,7 +72,7 @@ def test_a_lone_walker_crosses_like_the_straight_real_walk():
     """Social force, alone in the open ETH scene, walks a straight 6 m at the real 1 m/s: it arrives,
     in about the real time (it starts from rest), stays near the real positions, and walks smoothly."""
     row = mr.run_scenario("sfm", _line_scenario(), seed=0)
-    assert row["walkers"] == 1 and row["arrived"] == 1
+    assert row["walkers"] == 1 and row["arrived"] == 1 and row["missed"] == []
     assert 0.9 <= row["ratio"][0] <= 1.4
     assert row["ade"][0] < 0.6 and row["fde"][0] < 0.6
     assert row["sim"]["speed"].mean() == pytest.approx(1.0, abs=0.15)
@@ -87,6 +87,15 @@ def test_cli_quick_prints_every_key(capsys):
     assert main(["eval", "crowd-matched", "--quick", "--crowds", "sfm", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     for key in ("speed_mean", "speed_w1", "accel_w1", "jerk_w1", "ade_m", "fde_m", "arrival_rate", "time_ratio",
-                "collision_rate", "walkers"):
+                "collision_rate", "walkers", "never_arrived", "never_arrived_closest_m"):
         assert key in out["sfm"]
     assert out["settings"]["scenarios"] == 2 and out["real"]["samples"]["speed"] > 0
+
+
+def test_a_walker_who_cannot_make_it_is_counted_with_its_closest_approach():
+    """A real walk too fast to copy (12 m in 0.8 s; the sim's pace is capped at 2 m/s and the run at
+    1.5 x 0.8 + 4 s): the walker never arrives, and its closest approach is where it stopped."""
+    row = mr.run_scenario("sfm", _line_scenario(speed=12.0, length=12.0), seed=0)
+    assert row["arrived"] == 0 and row["ratio"] == []
+    (closest, final), = row["missed"]
+    assert 0.5 < closest < 12.0 and closest == pytest.approx(final, abs=0.05)

@@ -30,7 +30,9 @@ of the kinematics, of the real segments too.
 * ``ade_m``: mean distance between the simulated and the real position at the same time, over the
   real segment (a walker who arrived stays at the goal); ``fde_m``: at the segment's end;
 * ``arrival_rate``: walkers within 0.5 m of their goal by ``1.5 x`` their real duration + 2 s;
-  ``time_ratio``: median of sim time / real time over the walkers who arrived;
+  ``time_ratio``: median of sim time / real time over the walkers who arrived; ``never_arrived``: walkers
+  never within 0.5 m of their goal, with the medians of their closest approach
+  (``never_arrived_closest_m``) and of their distance at the end (``never_arrived_final_m``);
 * ``collision_rate``: share of person-steps (every 0.1 s, everyone in the scene) with another centre
   closer than :data:`~navzoo.benchmark.crowd_eval.OVERLAP_M` (0.4 m); the real row gives the same
   people over the same windows.
@@ -190,6 +192,7 @@ def run_scenario(crowd: str, sc: Scenario, seed: int = 0, skip: float = 2.0,
     sim_kin: dict[str, list[np.ndarray]] = {q: [] for q in QUANTITIES}
     real_kin: dict[str, list[np.ndarray]] = {q: [] for q in QUANTITIES}
     ade, fde, ratio = [], [], []
+    missed: list[tuple[float, float]] = []
     arrived = 0
     for j in np.flatnonzero(walker):
         real = sc["real"][j]
@@ -200,6 +203,9 @@ def run_scenario(crowd: str, sc: Scenario, seed: int = 0, skip: float = 2.0,
         fde.append(float(err[-1]))
         ok = not np.isnan(arrive_t[j]) and arrive_t[j] <= 1.5 * dur[j] + 2.0
         arrived += int(ok)
+        if np.isnan(arrive_t[j]):  # never within ARRIVE_M: how close did they come, and where did they end?
+            to_goal = np.linalg.norm(pos[:, j] - sc["goals"][j], axis=1)
+            missed.append((float(to_goal.min()), float(to_goal[-1])))
         if not np.isnan(arrive_t[j]):
             ratio.append(float(arrive_t[j] / max(dur[j], STEP)))
         end = arrive_t[j] if not np.isnan(arrive_t[j]) else times[-1]
@@ -215,7 +221,7 @@ def run_scenario(crowd: str, sc: Scenario, seed: int = 0, skip: float = 2.0,
     cat = {q: (np.concatenate(v) if v else np.zeros(0)) for q, v in sim_kin.items()}
     cat_real = {q: (np.concatenate(v) if v else np.zeros(0)) for q, v in real_kin.items()}
     return {"crowd": crowd, "recording": sc["recording"], "t": sc["t"], "people": n, "walkers": int(walker.sum()),
-            "sim": cat, "real": cat_real, "ade": ade, "fde": fde, "ratio": ratio, "arrived": arrived,
+            "sim": cat, "real": cat_real, "ade": ade, "fde": fde, "ratio": ratio, "arrived": arrived, "missed": missed,
             "sim_hits": sim_hits, "real_hits": real_hits, "sim_seconds": float(times[-1])}
 
 
@@ -245,12 +251,16 @@ def _pool(rows: list[dict[str, Any]]) -> dict[str, Any]:
         out[f"{q}_w1"], out[f"{q}_js"] = d["w1"], d["js"]
     walkers = sum(r["walkers"] for r in rows)
     ratios = [x for r in rows for x in r["ratio"]]
+    missed = [m for r in rows for m in r["missed"]]
     hits = [sum(r["sim_hits"][k] for r in rows) for k in (0, 1)]
     out.update({
         "ade_m": float(np.mean([x for r in rows for x in r["ade"]])),
         "fde_m": float(np.mean([x for r in rows for x in r["fde"]])),
         "arrival_rate": sum(r["arrived"] for r in rows) / max(1, walkers),
         "time_ratio": float(np.median(ratios)) if ratios else float("nan"),
+        "never_arrived": len(missed),
+        "never_arrived_closest_m": float(np.median([m[0] for r in rows for m in r["missed"]])) if missed else float("nan"),
+        "never_arrived_final_m": float(np.median([m[1] for r in rows for m in r["missed"]])) if missed else float("nan"),
         "collision_rate": hits[0] / max(1, hits[1]),
         "walkers": walkers, "scenarios": len(rows),
         "samples": {q: int(sim[q].size) for q in QUANTITIES},
@@ -261,6 +271,9 @@ def _pool(rows: list[dict[str, Any]]) -> dict[str, Any]:
         n = sum(r["walkers"] for r in rs)
         per[name] = {"walkers": n, "ade_m": float(np.mean([x for r in rs for x in r["ade"]])),
                      "arrival_rate": sum(r["arrived"] for r in rs) / max(1, n),
+                     "never_arrived": sum(len(r["missed"]) for r in rs),
+                     "never_arrived_closest_m": float(np.median([m[0] for r in rs for m in r["missed"]]))
+                     if any(r["missed"] for r in rs) else float("nan"),
                      **{f"{q}_mean": float(np.concatenate([r["sim"][q] for r in rs]).mean())
                         if sum(r["sim"][q].size for r in rs) else float("nan") for q in ("speed", "accel")},
                      **{f"real_{q}_mean": float(np.concatenate([r["real"][q] for r in rs]).mean())
