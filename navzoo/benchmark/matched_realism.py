@@ -60,6 +60,7 @@ from navzoo.benchmark.crowd_eval import (
     collision_share,
     distribution_distance,
     kinematics,
+    resample,
 )
 
 __all__ = ["DIFFUSION_SETTINGS", "RECORDINGS", "Scenario", "apply_diffusion_settings", "check_diffusion_settings",
@@ -99,12 +100,12 @@ def scenarios(recording: str, every: float = 20.0, horizon: float = 12.0, min_re
             continue
         segs, present = [], []
         end = T + horizon
+        fine = T + SIM_DT * np.arange(int(round(horizon / SIM_DT)) + 1)
         for i in here:
             times = rec.t0[i] + np.arange(len(rec.xy[i])) * rec.dt
             stop = min(end, times[-1])
             grid = T + STEP * np.arange(int(np.floor((stop - T) / STEP + 1e-9)) + 1)
             segs.append(_interp(times, rec.xy[i], grid))
-            fine = T + SIM_DT * np.arange(int(round(horizon / SIM_DT)) + 1)
             inside = fine <= times[-1] + 1e-9
             present.append((inside, _interp(times, rec.xy[i], fine)))
         starts = np.array([s[0] for s in segs])
@@ -208,9 +209,8 @@ def run_scenario(crowd: str, sc: Scenario, seed: int = 0, skip: float = 2.0,
             missed.append((float(to_goal.min()), float(to_goal[-1])))
         if not np.isnan(arrive_t[j]):
             ratio.append(float(arrive_t[j] / max(dur[j], STEP)))
-        end = arrive_t[j] if not np.isnan(arrive_t[j]) else times[-1]
-        sim_grid = STEP * np.arange(int(np.floor(end / STEP + 1e-9)) + 1)
-        sim_track = _interp(times, pos[:, j], sim_grid)
+        last = len(times) if np.isnan(arrive_t[j]) else int(round(arrive_t[j] / SIM_DT)) + 1
+        sim_track = resample(times[:last], pos[:last, j], STEP)  # up to the arrival
         for track, into in ((sim_track, sim_kin), (real, real_kin)):
             if len(track) > k0 + 3:
                 for q, v in kinematics(track[k0:], STEP).items():
