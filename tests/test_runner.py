@@ -229,6 +229,36 @@ def test_crashes_are_recorded_and_the_run_goes_on(tmp_path, capsys):
     assert report["n_errors"] == 3 and not (out / ".inflight").exists()
 
 
+def test_a_pool_that_broke_before_a_submit_is_restarted(tmp_path, monkeypatch):
+    """A worker can die while the runner is still submitting: ``submit`` then raises BrokenProcessPool
+    itself (seen under load with test-die). The pool restarts and every episode still runs."""
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
+
+    import navzoo.benchmark.runner as runner
+
+    pools = []
+
+    class BreaksOnSecondSubmit(ProcessPoolExecutor):
+        def __init__(self, *a, **k):
+            super().__init__(*a, **k)
+            pools.append(self)
+            self._submits = 0
+
+        def submit(self, fn, /, *args, **kwargs):
+            self._submits += 1
+            if len(pools) == 1 and self._submits == 2:
+                raise BrokenProcessPool("simulated: a child process terminated abruptly")
+            return super().submit(fn, *args, **kwargs)
+
+    monkeypatch.setattr(runner, "ProcessPoolExecutor", BreaksOnSecondSubmit)
+    out = tmp_path / "broken"
+    summary = run_benchmark(_tiny(), out, workers=2, progress=False)
+    assert len(pools) >= 2  # restarted
+    assert summary["episodes_run"] == len(load_episodes(out)) and len(load_episodes(out)) > 0
+    assert not (out / "errors.jsonl").exists() or not (out / "errors.jsonl").read_text().strip()
+
+
 @pytest.mark.parametrize(
     "args, needle",
     [

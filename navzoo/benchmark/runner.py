@@ -1212,8 +1212,14 @@ def _run_pool(todo: list[EpisodeTask], workers: int, spec: BenchmarkSpec, out: P
                 while (queue or futs) and not lost:
                     while queue and len(futs) < window:
                         task = queue.popleft()
-                        futs[ex.submit(execute_task, task)] = task
+                        try:
+                            futs[ex.submit(execute_task, task)] = task
+                        except BrokenProcessPool:  # a worker died since the last wait: restart as below
+                            lost.append(task)
+                            break
                         procs.update(getattr(ex, "_processes", None) or {})
+                    if lost:
+                        break
                     done, _ = wait(list(futs), timeout=1.0, return_when=FIRST_COMPLETED)
                     for f in done:
                         task = futs.pop(f)
