@@ -2,7 +2,8 @@
 
 Runs :func:`navzoo.benchmark.pedestrians.follow_scene` (8 scenes, 3-15 people, social-force targets)
 once per configuration and scene, in parallel processes, and appends one JSON row per run to
-``--out`` (rows already there are skipped, so an interrupted run resumes). A configuration is
+``--out`` (runs already there, same configuration, crowd model, settings, scene and seed, are skipped, so an
+interrupted run resumes; a name already there with other parameters is refused). A configuration is
 ``NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN]]`` and sets, in every worker,
 ``navzoo.envs.amp_humans.PLAN_MARGIN`` (people and A* inflation), ``WALL_PLAN_MARGIN`` (walls in the
 social-force rollouts), ``WAYPOINT_LOOKAHEAD`` (0 = waypoints in strict order) and
@@ -97,13 +98,43 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
             "crowd": crowd, "diffusion_settings": diffusion_settings, "seed": seed, **row}
 
 
+_PARAMS = ("plan_margin", "wall_margin", "lookahead", "turn_rate", "env_flags", "trim", "policy", "accel")
+
+
+def _group(row: dict) -> tuple:
+    """What a result row is a sample of: configuration, crowd model and its settings, seed. Rows written
+    before the crowd was recorded were social-force runs."""
+    settings = json.dumps(row.get("diffusion_settings") or {}, sort_keys=True)
+    return row["config"], row.get("crowd", "sfm"), settings, row["seed"]
+
+
+def done_runs(rows: list[dict], configs: list[dict]) -> set[tuple]:
+    """Keys (group + scene) of the runs already in a result file, so a rerun skips exactly those. A
+    configuration whose name is in the file with other parameters is refused: its rows would be mixed
+    with the new ones under one name."""
+    by_name = {c["name"]: c for c in configs}
+    for r in rows:
+        c = by_name.get(r["config"])
+        if c is None:
+            continue
+        diff = [k for k in _PARAMS if k in r and r[k] != c[k]]
+        if diff:
+            raise ValueError(f"configuration {c['name']!r} is already in the result file with other "
+                             f"{', '.join(diff)} ({', '.join(f'{r[k]!r}' for k in diff)}); give it another name "
+                             "or another --out")
+    return {(*_group(r), r["scene"]) for r in rows}
+
+
 def summary(path: str) -> str:
     rows = [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
     keys = ("success", "off_path", "fall", "timeout")
     lines = ["| configuration | trips | success | off path | fall | timeout | map contact | agent contact | path error (m) |",
              "|---|---|---|---|---|---|---|---|---|"]
-    for name, seed in dict.fromkeys((r["config"], r["seed"]) for r in rows):
-        rs = [r for r in rows if r["config"] == name and r["seed"] == seed]
+    for group in dict.fromkeys(_group(r) for r in rows):
+        rs = [r for r in rows if _group(r) == group]
+        name, crowd, settings, seed = group
+        if crowd != "sfm" or settings != "{}":
+            name = f"{name} ({crowd}{'' if settings == '{}' else ' ' + settings})"
         n = sum(r[k] for r in rs for k in keys)
         err = sum(r["err_sum"] for r in rs) / max(1, sum(r["err_n"] for r in rs))
         share = {k: sum(r[k] for r in rs) / max(1, n) for k in (*keys, "map_trips", "agent_trips")}
@@ -134,12 +165,7 @@ def main(argv: list[str] | None = None) -> int:
     configs = [parse_config(c) for c in args.configs.split(",")]
     seeds = [int(s) for s in args.seeds.split(",")]
     out = Path(args.out)
-    done = set()
-    if out.is_file():
-        for line in out.read_text().splitlines():
-            if line.strip():
-                r = json.loads(line)
-                done.add((r["config"], r["scene"], r["seed"]))
+    rows = [json.loads(line) for line in out.read_text().splitlines() if line.strip()] if out.is_file() else []
     people = dict(zip(SCENES, people_per_scene(len(SCENES)), strict=True))
     scenes = SCENES if args.scenes is None else tuple(args.scenes.split(","))
     unknown = sorted(set(scenes) - set(SCENES))
@@ -151,10 +177,15 @@ def main(argv: list[str] | None = None) -> int:
         diffusion_settings = check_diffusion_settings(_settings(args.diffusion_set))
     except ValueError as exc:
         ap.error(str(exc))
+    try:
+        done = done_runs(rows, configs)
+    except ValueError as exc:
+        ap.error(str(exc))
+    settings_key = json.dumps(diffusion_settings or {}, sort_keys=True)
     jobs = [(c, s, people[s], args.seconds, seed, args.crowd, diffusion_settings) for seed in seeds for s in scenes for c in configs
-            if (c["name"], s, seed) not in done]
+            if (c["name"], args.crowd, settings_key, seed, s) not in done]
     jobs.sort(key=lambda j: -j[2])  # crowded scenes first: they take longest
-    print(f"{len(jobs)} runs ({len(done)} already in {out})", file=sys.stderr, flush=True)
+    print(f"{len(jobs)} runs ({len(rows)} rows already in {out})", file=sys.stderr, flush=True)
     with mp.get_context("spawn").Pool(args.workers, maxtasksperchild=1) as pool, out.open("a") as f:
         for row in pool.imap_unordered(_run, jobs):
             f.write(json.dumps(row) + "\n")

@@ -1,0 +1,83 @@
+"""The following-protocol ablation script's result files: resume keys and summaries (scripts/amp_target_ablation.py)."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import pytest
+
+_SPEC = importlib.util.spec_from_file_location("amp_target_ablation",
+                                               Path(__file__).resolve().parents[1] / "scripts" / "amp_target_ablation.py")
+ablation = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(ablation)
+
+
+def _row(config: dict, scene: str, seed: int, crowd: str | None = "sfm", success: int = 3, **extra) -> dict:
+    row = {"config": config["name"], **{k: config[k] for k in ablation._PARAMS}, "seed": seed, "scene": scene,
+           "success": success, "off_path": 1, "fall": 0, "timeout": 0, "map_trips": 1, "agent_trips": 0,
+           "err_sum": 1.0, "err_n": 10, "diffusion_settings": {}, **extra}
+    if crowd is not None:
+        row["crowd"] = crowd
+    return row
+
+
+def test_runs_of_another_crowd_model_are_not_taken_as_done():
+    cfg = ablation.parse_config("c:0.1:0.1:4:2.0:0")
+    done = ablation.done_runs([_row(cfg, "lobby", 0, "sfm"), _row(cfg, "home", 1, None)], [cfg])
+    assert ("c", "sfm", "{}", 0, "lobby") in done
+    assert ("c", "sfm", "{}", 1, "home") in done  # rows from before the crowd was recorded were social force
+    assert ("c", "diffusion", "{}", 0, "lobby") not in done
+    assert ("c", "sfm", "{}", 1, "lobby") not in done
+
+
+def test_a_name_reused_with_other_parameters_is_refused():
+    old = ablation.parse_config("c:0.1:0.1:4:2.0:0:0.05")
+    new = ablation.parse_config("c:0.1:0.1:4:2.0:0:0.02")
+    with pytest.raises(ValueError, match="'c'.*trim"):
+        ablation.done_runs([_row(old, "lobby", 0)], [new])
+    other = ablation.parse_config("d:0.1:0.1:4:2.0:0:0.02")
+    assert ablation.done_runs([_row(old, "lobby", 0)], [other]) == {("c", "sfm", "{}", 0, "lobby")}
+
+
+def test_the_summary_keeps_crowd_models_apart(tmp_path):
+    cfg = ablation.parse_config("c:0.1:0.1:4:2.0:0")
+    rows = [_row(cfg, "lobby", 0, "sfm", success=3), _row(cfg, "lobby", 0, "diffusion", success=1)]
+    path = tmp_path / "rows.jsonl"
+    path.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    table = ablation.summary(str(path)).splitlines()
+    assert len(table) == 4
+    assert table[2].startswith("| c, seed 0 (1 scenes) | 4 | 0.750 |")
+    assert table[3].startswith("| c (diffusion), seed 0 (1 scenes) | 2 | 0.500 |")
+
+
+def test_a_rerun_with_the_other_crowd_model_refuses_nothing_and_skips_nothing(tmp_path, monkeypatch):
+    cfg = ablation.parse_config("c:0.1:0.1:4:2.0:0")
+    out = tmp_path / "rows.jsonl"
+    out.write_text(json.dumps(_row(cfg, "lobby", 0, "sfm")) + "\n")
+    seen = []
+
+    class FakePool:  # records the jobs instead of running 200 s of physics
+        def __init__(self, *a, **k):
+            pass
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def imap_unordered(self, fn, jobs):
+            seen.extend(jobs)
+            return iter(())
+
+    class FakeContext:
+        Pool = FakePool
+
+    monkeypatch.setattr(ablation.mp, "get_context", lambda *_: FakeContext)
+    ablation.main(["--configs", "c:0.1:0.1:4:2.0:0", "--scenes", "lobby", "--crowd", "diffusion", "--out", str(out)])
+    assert [(j[1], j[5]) for j in seen] == [("lobby", "diffusion")]
+    seen.clear()
+    ablation.main(["--configs", "c:0.1:0.1:4:2.0:0", "--scenes", "lobby", "--out", str(out)])
+    assert seen == []
