@@ -22,7 +22,7 @@ the policy's own. ``--crowd`` picks the crowd model that makes the targets (defa
 
     python scripts/amp_target_ablation.py --configs before:0.1:0.1:0,now:0.1:0:4 --seconds 200 \
         --workers 16 --out docs/results/amp_target_ablation.jsonl
-    python scripts/amp_target_ablation.py --summary docs/results/amp_target_ablation.jsonl
+    python scripts/amp_target_ablation.py --summary docs/results/amp_target_ablation.jsonl [--by-scene]
 """
 
 from __future__ import annotations
@@ -125,20 +125,32 @@ def done_runs(rows: list[dict], configs: list[dict]) -> set[tuple]:
     return {(*_group(r), r["scene"]) for r in rows}
 
 
-def summary(path: str) -> str:
+def summary(path: str, by_scene: bool = False) -> str:
+    """Markdown table of a result file: one line per configuration, crowd model and seed, or with
+    ``by_scene`` one line per configuration, crowd model and scene, pooling the seeds."""
     rows = [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
     keys = ("success", "off_path", "fall", "timeout")
     lines = ["| configuration | trips | success | off path | fall | timeout | map contact | agent contact | path error (m) |",
              "|---|---|---|---|---|---|---|---|---|"]
-    for group in dict.fromkeys(_group(r) for r in rows):
-        rs = [r for r in rows if _group(r) == group]
-        name, crowd, settings, seed = group
+
+    def group(r: dict) -> tuple:
+        g = _group(r)
+        return (*g[:3], r["scene"], r["pedestrians"]) if by_scene else g
+
+    for g in dict.fromkeys(group(r) for r in rows):
+        rs = [r for r in rows if group(r) == g]
+        name, crowd, settings = g[:3]
         if crowd != "sfm" or settings != "{}":
             name = f"{name} ({crowd}{'' if settings == '{}' else ' ' + settings})"
+        if by_scene:
+            seeds = sorted({r["seed"] for r in rs})
+            label = f"{name}, {g[3]} ({g[4]} people, seeds {','.join(map(str, seeds))})"
+        else:
+            label = f"{name}, seed {g[3]} ({len(rs)} scenes)"
         n = sum(r[k] for r in rs for k in keys)
         err = sum(r["err_sum"] for r in rs) / max(1, sum(r["err_n"] for r in rs))
         share = {k: sum(r[k] for r in rs) / max(1, n) for k in (*keys, "map_trips", "agent_trips")}
-        lines.append(f"| {name}, seed {seed} ({len(rs)} scenes) | {n} | {share['success']:.3f} | {share['off_path']:.3f} | "
+        lines.append(f"| {label} | {n} | {share['success']:.3f} | {share['off_path']:.3f} | "
                      f"{share['fall']:.3f} | {share['timeout']:.3f} | {share['map_trips']:.3f} | "
                      f"{share['agent_trips']:.3f} | {err:.3f} |")
     return "\n".join(lines)
@@ -156,9 +168,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--diffusion-set", default="", metavar="K=V,...", help="diffusion crowd settings for every run")
     ap.add_argument("--out", default="amp_target_ablation.jsonl")
     ap.add_argument("--summary", metavar="JSONL", help="print the table of a result file and exit")
+    ap.add_argument("--by-scene", action="store_true", help="with --summary: one line per scene, seeds pooled")
     args = ap.parse_args(argv)
     if args.summary:
-        print(summary(args.summary))
+        print(summary(args.summary, by_scene=args.by_scene))
         return 0
     from navzoo.benchmark.pedestrians import SCENES, people_per_scene
 

@@ -81,3 +81,15 @@ def test_a_rerun_with_the_other_crowd_model_refuses_nothing_and_skips_nothing(tm
     seen.clear()
     ablation.main(["--configs", "c:0.1:0.1:4:2.0:0", "--scenes", "lobby", "--out", str(out)])
     assert seen == []
+
+
+def test_the_summary_by_scene_pools_seeds(tmp_path):
+    cfg = ablation.parse_config("c:0.1:0.1:4:2.0:0")
+    rows = [_row(cfg, "lobby", 0, success=3, pedestrians=15), _row(cfg, "lobby", 1, success=1, pedestrians=15),
+            _row(cfg, "home", 0, success=0, pedestrians=5)]
+    path = tmp_path / "rows.jsonl"
+    path.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    table = ablation.summary(str(path), by_scene=True).splitlines()
+    assert len(table) == 4
+    assert table[2].startswith("| c, lobby (15 people, seeds 0,1) | 6 | 0.667 |")
+    assert table[3].startswith("| c, home (5 people, seeds 0) | 1 | 0.000 |")
