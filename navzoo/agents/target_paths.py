@@ -36,6 +36,43 @@ def goal_pref_velocity(goals: np.ndarray, speed: np.ndarray, slow_radius: float 
     return pref
 
 
+def waypoints_pref_velocity(waypoints: np.ndarray, counts: np.ndarray, speed: np.ndarray, reach: float = 0.5,
+                            slow_radius: float = 1.0) -> PrefVelocity:
+    """Preferred velocity along a short list of waypoints per person at ``speed`` (N,).
+
+    ``waypoints`` (N, W, 2) holds each person's waypoints in order, of which the first ``counts`` (N,)
+    are used (at least 1; the last one used is the goal). A person heads for its current waypoint and
+    moves on to the next once within ``reach`` of it; only the goal slows the person down (to rest
+    inside ``slow_radius``). The returned function keeps each person's progress between calls, so use a
+    fresh one for every rollout.
+    """
+    wps = np.asarray(waypoints, dtype=float)
+    counts = np.asarray(counts, dtype=int)
+    speed = np.asarray(speed, dtype=float)
+    if wps.ndim != 3 or wps.shape[2] != 2 or counts.shape != (wps.shape[0],) or speed.shape != counts.shape:
+        raise ValueError(f"waypoints must be (N, W, 2) with counts and speed (N,), got {wps.shape}, "
+                         f"{counts.shape} and {speed.shape}")
+    if (counts < 1).any() or (counts > wps.shape[1]).any():
+        raise ValueError(f"counts must lie in 1..{wps.shape[1]}, got {counts.tolist()}")
+    cursor = np.zeros(len(counts), dtype=int)
+    rows = np.arange(len(counts))
+    last = counts - 1
+
+    def pref(pos: np.ndarray, _k: int) -> np.ndarray:
+        while True:
+            d = wps[rows, cursor] - pos
+            dist = np.linalg.norm(d, axis=1)
+            move = (cursor < last) & (dist < reach)
+            if not move.any():
+                break
+            cursor[move] += 1
+        unit = d / np.maximum(dist, 1e-9)[:, None]
+        v = np.where(cursor == last, speed * np.minimum(1.0, dist / slow_radius), speed)
+        return unit * v[:, None]
+
+    return pref
+
+
 def sfm_rollout(
     pos: np.ndarray,
     vel: np.ndarray,
@@ -51,11 +88,13 @@ def sfm_rollout(
     others_radius: float = 0.3,
     segments: np.ndarray | None = None,
     segment_groups: np.ndarray | None = None,
+    wall_radius: np.ndarray | float | None = None,
 ) -> np.ndarray:
     """Positions (N, steps + 1, 2) of N people integrated with the social force model for ``steps``
     steps of ``dt`` from ``pos``/``vel`` (row 0 is ``pos``). People interact with each other, with
     ``others`` (e.g. robots, or people not being planned) moving at constant velocity, and with wall
-    ``segments``. ``pref_velocity(pos, k)`` gives each person's preferred velocity at step k."""
+    ``segments``. ``pref_velocity(pos, k)`` gives each person's preferred velocity at step k;
+    ``wall_radius`` is the radius the walls see (default: ``radius``)."""
     params = params or SocialForceParams()
     p = np.asarray(pos, dtype=float).copy()
     v = np.asarray(vel, dtype=float).copy()
@@ -68,7 +107,7 @@ def sfm_rollout(
     for k in range(steps):
         o = None if op is None else op + (k * dt) * ov
         v = social_force_velocities(p, v, pref_velocity(p, k), radius, max_speed, dt, params, segments,
-                                    o, ov, others_radius, segment_groups)
+                                    o, ov, others_radius, segment_groups, wall_radius)
         p = p + dt * v
         out[:, k + 1] = p
     return out

@@ -22,16 +22,18 @@ from navzoo.agents.amp.train import locomotion_reference
 
 
 def evaluate(policy_dir: str, envs: int = 16, seconds: float = 30.0, stage: int = 1, seed: int = 123,
-             pd_mode: str = "motor", steering_trim: float | None = None, symmetric: bool | None = None
-             ) -> dict[str, Any]:
+             pd_mode: str = "motor", steering_trim: float | None = None, symmetric: bool | None = None,
+             door_prob: float = 0.0) -> dict[str, Any]:
     """``steering_trim`` / ``symmetric`` override the policy's own settings (None keeps them; see
-    :meth:`navzoo.agents.amp.checkpoint.AmpPolicy.override`)."""
+    :meth:`navzoo.agents.amp.checkpoint.AmpPolicy.override`); ``door_prob`` (stage 3, a policy with
+    obstacle rays): share of patches split by a wall with a door, as in training."""
     policy = load_policy(policy_dir)
     if steering_trim is not None or symmetric is not None:
         policy.override(steering_trim, symmetric)
     rays = getattr(policy, "obs_dim", 0) == FEATURE_DIM + 2 * PathTaskConfig().n_waypoints + N_RAYS
     task = PathTaskConfig(stage=stage, rsi_prob=0.0, pd_mode=pd_mode, obstacle_obs=rays,
-                          boxes_per_patch=4 if rays and stage == 3 else 0, pair_patches=rays and stage == 3)
+                          boxes_per_patch=4 if rays and stage == 3 else 0, pair_patches=rays and stage == 3,
+                          door_prob=door_prob if rays and stage == 3 else 0.0)
     env = AmpPathEnv(envs, locomotion_reference(), task, seed=seed)
     obs = env.reset(seed=seed)
     steps = np.zeros(envs, dtype=int)
@@ -61,6 +63,7 @@ def evaluate(policy_dir: str, envs: int = 16, seconds: float = 30.0, stage: int 
         "envs": envs,
         "seconds": seconds,
         "stage": stage,
+        "door_prob": task.door_prob,
     }
 
 
@@ -73,10 +76,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=123)
     parser.add_argument("--steering-trim", type=float, default=None, help="rad; overrides the policy's trim")
     parser.add_argument("--symmetric", action="store_true", help="make the policy left/right symmetric")
+    parser.add_argument("--door-prob", type=float, default=0.0,
+                        help="stage 3: share of patches split by a wall with a door")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     result = evaluate(args.policy_dir, args.envs, args.seconds, args.stage, args.seed,
-                      steering_trim=args.steering_trim, symmetric=True if args.symmetric else None)
+                      steering_trim=args.steering_trim, symmetric=True if args.symmetric else None,
+                      door_prob=args.door_prob)
     print(json.dumps(result) if args.json else result)
     return 0
 

@@ -46,7 +46,7 @@ from navzoo.agents.amp.features import (
 from navzoo.agents.amp.sim import ACTION_DIM, PhysicsHumanoids, actions_to_targets
 from navzoo.agents.reference import ReferenceMotion, ReferenceState
 from navzoo.agents.sfm import SocialForceParams, social_force_velocities
-from navzoo.agents.target_paths import goal_pref_velocity, resample, sfm_rollout
+from navzoo.agents.target_paths import resample, sfm_rollout, waypoints_pref_velocity
 
 
 @dataclass(frozen=True)
@@ -89,6 +89,13 @@ class PathTaskConfig:
     obstacle_obs: bool = False
     boxes_per_patch: int = 0
     pair_patches: bool = False
+    # doorways (stage 3): with probability door_prob a patch is split by a wall (0.15 m thick) with one
+    # door of door_width; crowd paths to goals behind the wall pass the door on its axis (an entry point
+    # door_approach before the door, its exit point as far behind), and the virtual neighbours stay on
+    # their side
+    door_prob: float = 0.0
+    door_width: tuple[float, float] = (0.85, 1.2)
+    door_approach: float = 0.7
 
     def __post_init__(self) -> None:
         if self.stage not in (1, 2, 3):
@@ -101,6 +108,10 @@ class PathTaskConfig:
                 raise ValueError(f"PathTaskConfig.{name} must be >= 1, got {getattr(self, name)!r}")
         if self.physics_hz % self.control_hz:
             raise ValueError("PathTaskConfig.physics_hz must be a multiple of control_hz")
+        if not 0.0 <= self.door_prob <= 1.0:
+            raise ValueError(f"PathTaskConfig.door_prob must lie in [0, 1], got {self.door_prob!r}")
+        if not 0.6 <= self.door_width[0] <= self.door_width[1]:
+            raise ValueError(f"PathTaskConfig.door_width must be 0.6 <= min <= max (m), got {self.door_width!r}")
         if self.amp_velocity not in AMP_VELOCITY_MODES:
             raise ValueError(f"PathTaskConfig.amp_velocity must be one of {AMP_VELOCITY_MODES}, "
                              f"got {self.amp_velocity!r}")
@@ -162,33 +173,85 @@ class AmpPathEnv:
         self._sfm = SocialForceParams()
 
     # ------------------------------------------------------------------ obstacles
-    def _build_boxes(self, n_patches: int, cols: int) -> tuple[np.ndarray, list[np.ndarray]]:
-        """Static boxes (0.4-1.6 m sides, 1 m high) in every patch; returns all wall segments and each
-        patch's. The layout is drawn once from the env's seed."""
+    def _add_box(self, centre: np.ndarray, half: np.ndarray, yaw: float) -> list[list[np.ndarray]]:
+        """A static box (1 m high) in the world; returns its 4 wall segments."""
         import pybullet as p
 
         from navzoo.world.builder import GROUP_STATIC, MASK_ALL
 
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[half[0], half[1], 0.5], physicsClientId=self.client)
+        body = p.createMultiBody(0.0, col, -1, [centre[0], centre[1], 0.5], yaw_quat(np.array(yaw)).tolist(),
+                                 physicsClientId=self.client)
+        p.setCollisionFilterGroupMask(body, -1, GROUP_STATIC, MASK_ALL, physicsClientId=self.client)
+        c, s_ = np.cos(yaw), np.sin(yaw)
+        corners = centre + (np.array([[1, 1], [-1, 1], [-1, -1], [1, -1]]) * half) @ np.array([[c, s_], [-s_, c]])
+        return [[corners[j], corners[(j + 1) % 4]] for j in range(4)]
+
+    def _build_boxes(self, n_patches: int, cols: int) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Static boxes (0.4-1.6 m sides, 1 m high) and, with ``door_prob``, a wall with a door in the
+        patches; returns all wall segments and each patch's, and fills ``self.doors`` (n_patches, 4):
+        each patch's door centre and the wall's unit normal (NaN without a wall). The layout is drawn
+        once from the env's seed."""
         cfg = self.cfg
         per_patch: list[np.ndarray] = []
+        self.doors = np.full((n_patches, 4), np.nan)
         for q in range(n_patches):
             origin = np.array([(q % cols) * cfg.spacing, (q // cols) * cfg.spacing], dtype=float)
-            segs = []
+            segs: list[list[np.ndarray]] = []
+            if cfg.door_prob > 0 and self.rng.random() < cfg.door_prob:
+                theta = self.rng.uniform(-np.pi, np.pi)
+                normal = np.array([np.cos(theta), np.sin(theta)])
+                along = np.array([-normal[1], normal[0]])
+                centre = origin + self.rng.uniform(-1.5, 1.5) * normal + self.rng.uniform(-2.0, 2.0) * along
+                width = self.rng.uniform(*cfg.door_width)
+                reach = cfg.arena_radius + 1.5  # the wall spans the arena
+                base = origin + float((centre - origin) @ normal) * normal
+                s0 = float((centre - base) @ along)
+                for lo, hi in ((-reach, s0 - width / 2), (s0 + width / 2, reach)):
+                    mid = base + 0.5 * (lo + hi) * along
+                    segs += self._add_box(mid, np.array([0.5 * (hi - lo), 0.075]), float(np.arctan2(along[1], along[0])))
+                self.doors[q] = [*centre, *normal]
             for _ in range(cfg.boxes_per_patch):
-                r = cfg.arena_radius * np.sqrt(self.rng.uniform(0.1, 0.8))
-                a = self.rng.uniform(-np.pi, np.pi)
-                centre = origin + r * np.array([np.cos(a), np.sin(a)])
-                half = self.rng.uniform(0.2, 0.8, 2)
+                for _try in range(20):  # boxes keep 1.3 m from a wall, so the door and its approach stay open
+                    r = cfg.arena_radius * np.sqrt(self.rng.uniform(0.1, 0.8))
+                    a = self.rng.uniform(-np.pi, np.pi)
+                    centre = origin + r * np.array([np.cos(a), np.sin(a)])
+                    half = self.rng.uniform(0.2, 0.8, 2)
+                    if (np.isnan(self.doors[q, 0])
+                            or abs((centre - self.doors[q, :2]) @ self.doors[q, 2:]) > 1.3 + np.linalg.norm(half)):
+                        break
                 yaw = self.rng.uniform(-np.pi, np.pi)
-                col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[half[0], half[1], 0.5], physicsClientId=self.client)
-                body = p.createMultiBody(0.0, col, -1, [centre[0], centre[1], 0.5], yaw_quat(np.array(yaw)).tolist(),
-                                         physicsClientId=self.client)
-                p.setCollisionFilterGroupMask(body, -1, GROUP_STATIC, MASK_ALL, physicsClientId=self.client)
-                c, s_ = np.cos(yaw), np.sin(yaw)
-                corners = centre + (np.array([[1, 1], [-1, 1], [-1, -1], [1, -1]]) * half) @ np.array([[c, s_], [-s_, c]])
-                segs += [[corners[j], corners[(j + 1) % 4]] for j in range(4)]
+                segs += self._add_box(centre, half, yaw)
             per_patch.append(np.asarray(segs, dtype=float).reshape(-1, 2, 2))
         return np.concatenate(per_patch) if per_patch else np.zeros((0, 2, 2)), per_patch
+
+    def _side(self, i: int, pts: np.ndarray) -> np.ndarray:
+        """Which side of env i's wall points (P, 2) lie on (+1 / -1; +1 everywhere without a wall)."""
+        door = self.doors[self.patch[i]]
+        if np.isnan(door[0]):
+            return np.ones(len(pts))
+        return np.where((np.asarray(pts) - door[:2]) @ door[2:] >= 0.0, 1.0, -1.0)
+
+    def _waypoints(self, i: int, pos: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        """Waypoints (W, 2) from ``pos`` to ``goal`` in env i's patch: through the door on its axis when
+        the goal lies behind the wall, else the goal alone."""
+        side = self._side(i, np.stack([pos, goal]))
+        if side[0] == side[1]:
+            return goal[None].copy()
+        door = self.doors[self.patch[i]]
+        step = side[0] * self.cfg.door_approach * door[2:]
+        return np.stack([door[:2] + step, door[:2] - step, goal])
+
+    def _side_points(self, i: int, pos: np.ndarray) -> np.ndarray:
+        """Random arena points (P, 2) of env i, each on the same side of the wall as ``pos`` (P, 2)."""
+        out = self.origins[i] + self._random_points(len(pos))
+        side = self._side(i, pos)
+        for _ in range(10):
+            bad = self._side(i, out) != side
+            if not bad.any():
+                break
+            out[bad] = self.origins[i] + self._random_points(int(bad.sum()))
+        return out
 
     def _clearance(self, i: int, pts: np.ndarray) -> np.ndarray:
         """Distance of points (P, 2) to the boxes of env i's patch (inf without boxes)."""
@@ -302,7 +365,7 @@ class AmpPathEnv:
             near = np.linalg.norm(pts, axis=1) < 1.0  # keep the start clear
             pts[near] *= 1.0 / np.maximum(np.linalg.norm(pts[near], axis=1, keepdims=True), 1e-6)
             self._nb_pos[i] = self.origins[i] + pts
-            self._nb_goal[i] = self.origins[i] + self._random_points(nv)
+            self._nb_goal[i] = self._side_points(int(i), self._nb_pos[i])
         self._nb_vel[idx] = 0.0
         self._nb_speed[idx] = self.rng.uniform(0.6, 1.4, (idx.size, nv))
         self._next_push[idx] = (self.rng.uniform(*cfg.push_interval, idx.size) * cfg.control_hz).astype(int)
@@ -320,13 +383,18 @@ class AmpPathEnv:
         vel = state["root_lin_vel"][idx, :2]
         waiting = self._wait_until[idx] > self.t[idx]
         goal = np.where(waiting[:, None], pos, self._goal[idx])
+        routes = [self._waypoints(int(i), pos[k], goal[k]) for k, i in enumerate(idx)]
+        counts = np.array([len(r) for r in routes])
+        wps = np.repeat(goal[:, None], counts.max(), axis=1)
+        for k, r in enumerate(routes):
+            wps[k, :len(r)] = r
         o_pos, o_vel = self._nb_pos[idx].reshape(-1, 2), self._nb_vel[idx].reshape(-1, 2)
         partners = self.partner[idx]
         partners = partners[partners >= 0]
         if partners.size:  # the other humanoid of a shared patch, at constant velocity
             o_pos = np.concatenate([o_pos, state["root_pos"][partners, :2]])
             o_vel = np.concatenate([o_vel, state["root_lin_vel"][partners, :2]])
-        roll = sfm_rollout(pos, vel, goal_pref_velocity(goal, self._speed[idx]), steps, cfg.plan_dt,
+        roll = sfm_rollout(pos, vel, waypoints_pref_velocity(wps, counts, self._speed[idx]), steps, cfg.plan_dt,
                            params=self._sfm, others_pos=o_pos, others_vel=o_vel,
                            segments=self._segments if len(self._segments) else None,
                            segment_groups=np.arange(len(self._segments)) // 4 if len(self._segments) else None)
@@ -355,7 +423,7 @@ class AmpPathEnv:
         self._nb_vel = vel.reshape(e, nv, 2)
         arrived = np.linalg.norm(self._nb_goal - self._nb_pos, axis=2) < 0.5
         for i, j in zip(*np.nonzero(arrived), strict=True):
-            self._nb_goal[i, j] = self.origins[i] + self._random_points(1)[0]
+            self._nb_goal[i, j] = self._side_points(int(i), self._nb_pos[i, j][None])[0]
         root = state["root_pos"][:, :2]
         for i in np.flatnonzero(self._crowd & (np.linalg.norm(self._goal - root, axis=1) < 0.6)):
             self._new_goal(int(i), root[i])

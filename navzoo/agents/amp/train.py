@@ -57,6 +57,8 @@ class TrainArgs:
     time_limit_s: float | None = None
     pd_mode: str = "motor"
     obstacles: int = 0  # 1: obstacle rays in the observation, boxes and paired humanoids in each patch
+    # stage 3 with obstacles: share of patches split by a wall with one door (PathTaskConfig.door_prob)
+    door_prob: float = 0.0
     # discriminator inputs (see PathTaskConfig.amp_velocity and path_env.ground_clips); a change of either
     # invalidates a checkpoint's discriminator: resume it with --reset-disc 1
     amp_velocity: str = "finite_difference"
@@ -89,12 +91,15 @@ def run(args: TrainArgs) -> dict[str, Any]:
     from navzoo.agents.amp.learner import AmpConfig, AmpLearner
     from navzoo.agents.amp.vec import SubprocAmpVecEnv
 
+    if args.door_prob and not (args.stage == 3 and args.obstacles):
+        raise ValueError(f"--door-prob {args.door_prob} needs --stage 3 --obstacles 1 (walls are stage-3 "
+                         f"obstacles the policy must see), got --stage {args.stage} --obstacles {args.obstacles}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     hidden = tuple(int(h) for h in args.hidden.split(","))
     task = PathTaskConfig(stage=args.stage, pd_mode=args.pd_mode, obstacle_obs=bool(args.obstacles),
                           boxes_per_patch=4 if args.obstacles else 0, pair_patches=bool(args.obstacles),
-                          amp_velocity=args.amp_velocity)
+                          amp_velocity=args.amp_velocity, door_prob=args.door_prob)
     make_reference = grounded_locomotion_reference if args.ground_reference else locomotion_reference
     if args.workers > 1:
         env: Any = SubprocAmpVecEnv(make_reference, args.workers, args.envs_per_worker, task, seed=args.seed)
