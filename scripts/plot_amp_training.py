@@ -51,13 +51,15 @@ def main() -> None:
         for s in stages:
             ax.axvline(s["from_step"] / 1e6, color="C3", lw=0.8, ls="--")
         ax.grid(alpha=0.3)
-    for s in stages:
-        axes[0, 0].text(s["from_step"] / 1e6, axes[0, 0].get_ylim()[1], " " + s["label"], color="C3", fontsize=8,
-                        va="top")
+    # numbered markers on the lines, the labels spelled out under the figure (they overlap on the axis)
+    for k, s in enumerate(stages, 1):
+        axes[0, 0].text(s["from_step"] / 1e6, axes[0, 0].get_ylim()[1], f" {k}", color="C3", fontsize=8, va="top")
     for ax in axes[1]:
         ax.set_xlabel("samples (millions)")
     fig.suptitle("AMP pedestrian controller: training (training/amp/metrics.jsonl.gz)")
-    fig.tight_layout()
+    legend = "   ".join(f"{k}: {s['label']}" for k, s in enumerate(stages, 1))
+    fig.text(0.5, 0.01, legend, ha="center", va="bottom", color="C3", fontsize=8, wrap=True)
+    fig.tight_layout(rect=(0, 0.04 if stages else 0, 1, 1))
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(args.out, dpi=110)
     print(args.out)
