@@ -24,16 +24,7 @@ def goal_pref_velocity(goals: np.ndarray, speed: np.ndarray, slow_radius: float 
     """Preferred velocity towards fixed ``goals`` (N, 2) at ``speed`` (N,), slowing to rest inside
     ``slow_radius`` of the goal (so a rollout that reaches its goal stands there)."""
     goals = np.asarray(goals, dtype=float)
-    speed = np.asarray(speed, dtype=float)
-
-    def pref(pos: np.ndarray, _k: int) -> np.ndarray:
-        d = goals - pos
-        dist = np.linalg.norm(d, axis=1, keepdims=True)
-        unit = d / np.maximum(dist, 1e-9)
-        v = speed[:, None] * np.minimum(1.0, dist / slow_radius)
-        return unit * v
-
-    return pref
+    return waypoints_pref_velocity(goals[:, None], np.ones(len(goals), dtype=int), speed, slow_radius=slow_radius)
 
 
 def waypoints_pref_velocity(waypoints: np.ndarray, counts: np.ndarray, speed: np.ndarray, reach: float = 0.5,
