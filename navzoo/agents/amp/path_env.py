@@ -80,6 +80,13 @@ class PathTaskConfig:
     n_neighbours: int = 6  # virtual 2D people sharing each humanoid's patch
     arena_radius: float = 6.0  # m: goals and neighbours stay within this distance of the patch centre
     replan_seconds: float = 2.0
+    # True: the periodic replans of all humanoids of an env fall on the same control steps (every
+    # replan_seconds of the env's own clock), as all pedestrians of a navigation env replan together; a
+    # humanoid's first periodic replan after a reset then comes 0-2 s after its initial plan. False: every
+    # humanoid replans replan_seconds after its own last plan (runs 1-20). Batching the rollouts matters for
+    # speed: the vector env waits for its slowest worker at every step, and one rollout costs a few steps
+    # (training/amp/README.md, "Collection speed")
+    replan_sync: bool = True
     plan_dt: float = 0.1  # s: integration step of the social force rollout
     push_interval: tuple[float, float] = (3.0, 8.0)  # s between pushes
     push_force: tuple[float, float] = (50.0, 250.0)  # N, horizontal, on the pelvis
@@ -155,6 +162,7 @@ class AmpPathEnv:
         self._segments, self._patch_segments = self._build_boxes(n_patches, cols)
         self.paths = np.zeros((self.num_envs, self._path_len, 2))
         self.t = np.zeros(self.num_envs, dtype=int)
+        self._clock = 0  # control steps since construction (replan_sync)
         self._window = np.zeros((self.num_envs, self.cfg.amp_window, FEATURE_DIM))
         # poses of the last control step (finite-difference velocities of the discriminator's features)
         self._prev = {k: np.zeros((self.num_envs,) + shape) for k, shape in _POSE_SHAPES.items()}
@@ -388,16 +396,22 @@ class AmpPathEnv:
         wps = np.repeat(goal[:, None], counts.max(), axis=1)
         for k, r in enumerate(routes):
             wps[k, :len(r)] = r
+        # Only the walls of the planned humanoids' own patches: the others lie 40 m away, where the wall
+        # force (range 0.1 m) is below 1e-150 of a near wall's, and they would cost most of the rollout.
+        segs = self._rollout_segments(idx)
         o_pos, o_vel = self._nb_pos[idx].reshape(-1, 2), self._nb_vel[idx].reshape(-1, 2)
         partners = self.partner[idx]
-        partners = partners[partners >= 0]
-        if partners.size:  # the other humanoid of a shared patch, at constant velocity
+        # the other humanoid of a shared patch, at constant velocity, unless it is planned in this same rollout
+        # (then it is one of the simulated people; as a constant-velocity copy too, it would sit on its own
+        # start and push itself, which runs 5-20 did whenever the two replanned on the same step)
+        partners = partners[(partners >= 0) & ~np.isin(partners, idx)]
+        if partners.size:
             o_pos = np.concatenate([o_pos, state["root_pos"][partners, :2]])
             o_vel = np.concatenate([o_vel, state["root_lin_vel"][partners, :2]])
         roll = sfm_rollout(pos, vel, waypoints_pref_velocity(wps, counts, self._speed[idx]), steps, cfg.plan_dt,
                            params=self._sfm, others_pos=o_pos, others_vel=o_vel,
-                           segments=self._segments if len(self._segments) else None,
-                           segment_groups=np.arange(len(self._segments)) // 4 if len(self._segments) else None)
+                           segments=segs if len(segs) else None,
+                           segment_groups=np.arange(len(segs)) // 4 if len(segs) else None)
         n = int(round(horizon * cfg.control_hz))
         path = resample(roll, cfg.plan_dt, self.dt, n)
         for k, i in enumerate(idx):
@@ -405,7 +419,16 @@ class AmpPathEnv:
             m = min(n, self._path_len - t0)
             self.paths[i, t0:t0 + m] = path[k, :m]
             self.paths[i, t0 + m:] = path[k, m - 1]
-        self._next_plan[idx] = self.t[idx] + int(round(cfg.replan_seconds * cfg.control_hz))
+        every = int(round(cfg.replan_seconds * cfg.control_hz))
+        # replan_sync: the next plan at the next multiple of `every` on the env's clock
+        self._next_plan[idx] = self.t[idx] + (every - self._clock % every if cfg.replan_sync else every)
+
+    def _rollout_segments(self, idx: np.ndarray) -> np.ndarray:
+        """The wall segments (M, 2, 2) of the patches of humanoids ``idx``, 4 per box, boxes whole."""
+        if not len(self._segments):
+            return self._segments
+        parts = [self._patch_segments[q] for q in np.unique(self.patch[idx])]
+        return np.concatenate(parts) if parts else np.zeros((0, 2, 2))
 
     def _step_stage3(self, state: dict[str, np.ndarray]) -> None:
         """Move the virtual neighbours, hand out new goals, push, and replan the crowd paths that are due."""
@@ -462,6 +485,7 @@ class AmpPathEnv:
         self.bodies.apply_targets(sph, rev)
         self.bodies.step()
         self.t += 1
+        self._clock += 1
         state = self.bodies.read_state()
         cfg = self.cfg
         target = self.paths[np.arange(self.num_envs), np.minimum(self.t, self._path_len - 1)]

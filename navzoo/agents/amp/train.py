@@ -59,6 +59,9 @@ class TrainArgs:
     obstacles: int = 0  # 1: obstacle rays in the observation, boxes and paired humanoids in each patch
     # stage 3 with obstacles: share of patches split by a wall with one door (PathTaskConfig.door_prob)
     door_prob: float = 0.0
+    # 1: stage-3 replans of all humanoids of a worker on the same steps (PathTaskConfig.replan_sync, since run
+    # 21); 0: each humanoid 2 s after its own last plan (runs 1-20)
+    replan_sync: int = 1
     # discriminator inputs (see PathTaskConfig.amp_velocity and path_env.ground_clips); a change of either
     # invalidates a checkpoint's discriminator: resume it with --reset-disc 1
     amp_velocity: str = "finite_difference"
@@ -99,7 +102,8 @@ def run(args: TrainArgs) -> dict[str, Any]:
     hidden = tuple(int(h) for h in args.hidden.split(","))
     task = PathTaskConfig(stage=args.stage, pd_mode=args.pd_mode, obstacle_obs=bool(args.obstacles),
                           boxes_per_patch=4 if args.obstacles else 0, pair_patches=bool(args.obstacles),
-                          amp_velocity=args.amp_velocity, door_prob=args.door_prob)
+                          amp_velocity=args.amp_velocity, door_prob=args.door_prob,
+                          replan_sync=bool(args.replan_sync))
     make_reference = grounded_locomotion_reference if args.ground_reference else locomotion_reference
     if args.workers > 1:
         env: Any = SubprocAmpVecEnv(make_reference, args.workers, args.envs_per_worker, task, seed=args.seed)

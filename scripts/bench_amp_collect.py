@@ -1,0 +1,69 @@
+"""Samples/s of AMP training's rollout collection (stage 3 + obstacles, the shipped policy acting).
+
+``python scripts/bench_amp_collect.py --workers 1,4,15 [--replan-sync 0,1] [--envs-per-worker 16] [--steps 120] [--warmup 90]``
+prints one JSON line per worker count: samples/s over ``steps`` batched control steps after a warm-up,
+the per-step wall time, and the machine. Used to find where training's collection time goes
+(docs: training/amp/README.md, "Collection speed").
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+
+
+def bench(workers: int, envs_per_worker: int, steps: int, warmup: int, door_prob: float, replan_sync: bool) -> dict:
+    from navzoo.agents.amp.checkpoint import load_policy
+    from navzoo.agents.amp.path_env import PathTaskConfig
+    from navzoo.agents.amp.train import grounded_locomotion_reference
+    from navzoo.agents.amp.vec import SubprocAmpVecEnv
+
+    policy = load_policy("policies/amp_pedestrian")
+    task = PathTaskConfig(stage=3, pd_mode="motor", obstacle_obs=True, boxes_per_patch=4, pair_patches=True,
+                          door_prob=door_prob, replan_sync=replan_sync)
+    env = SubprocAmpVecEnv(grounded_locomotion_reference, workers, envs_per_worker, task, seed=0)
+    try:
+        obs = env.reset(seed=0)
+        for _ in range(warmup):
+            obs = env.step(policy(obs))[0]
+        t0 = time.perf_counter()
+        t_pol = 0.0
+        for _ in range(steps):
+            t1 = time.perf_counter()
+            act = policy(obs)
+            t_pol += time.perf_counter() - t1
+            obs = env.step(act)[0]
+        wall = time.perf_counter() - t0
+    finally:
+        env.close()
+    n = workers * envs_per_worker
+    return {"workers": workers, "envs_per_worker": envs_per_worker, "samples_per_s": round(n * steps / wall, 1),
+            "per_worker_samples_per_s": round(envs_per_worker * steps / wall, 1),
+            "ms_per_step": round(1000 * wall / steps, 1), "policy_ms_per_step": round(1000 * t_pol / steps, 1),
+            "door_prob": door_prob, "replan_sync": replan_sync, "steps": steps, "warmup": warmup,
+            "threads_env": {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")},
+            "cpus": os.cpu_count(), "machine": platform.processor() or platform.machine()}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--workers", default="1,4,15")
+    ap.add_argument("--envs-per-worker", type=int, default=16)
+    ap.add_argument("--steps", type=int, default=120)
+    ap.add_argument("--warmup", type=int, default=90)
+    ap.add_argument("--door-prob", type=float, default=0.0)
+    ap.add_argument("--replan-sync", default="1", help="comma list of 0/1 (PathTaskConfig.replan_sync)")
+    a = ap.parse_args()
+    import torch
+
+    torch.set_num_threads(1)
+    for sync in (bool(int(x)) for x in a.replan_sync.split(",")):
+        for w in (int(x) for x in a.workers.split(",")):
+            print(json.dumps(bench(w, a.envs_per_worker, a.steps, a.warmup, a.door_prob, sync)), flush=True)
+
+
+if __name__ == "__main__":
+    main()
