@@ -16,6 +16,16 @@ the ``train`` files), ``--split loo`` tests on each scene's ``all_data`` with th
 ``all_data`` as the fold's training files. Per scene: minADE and minFDE over ``--samples`` samples
 (m, averaged over windows); ``average``: the unweighted mean over scenes (the usual ETH/UCY
 convention). Every model sees exactly the same windows.
+
+Maps (``--maps opentraj``; default ``none``): windows of a scene with an OpenTraj obstacle map in its world
+frame (``biwi_eth``; :mod:`navzoo.forecast.scene_maps`) carry the occupancy crop around the person, which
+a map-aware model (the shipped diffusion model) reads; the other scenes' windows say "no map". For
+scenes with a map the result also gives each model's ``obstacle_rate``: the share of its predicted points
+(every sample and step) on an occupied cell of the crop, next to the real futures' own rate
+(``ground_truth_obstacle_rate``). ``--maps none`` gives every window "no map"; the obstacle rates are
+still scored where the map files are found, so the two settings can be compared. The default is
+``none`` because the shipped model, whose map input was learned from simulated crowds at 0.4 s steps,
+forecasts ``biwi_eth`` (0.667 s steps) worse with its real map (docs/crowd.md, "The ETH obstacle map").
 """
 
 from __future__ import annotations
@@ -143,7 +153,8 @@ register_forecaster("diffusion", _diffusion)
 
 
 def score(forecaster: Any, batch: Mapping[str, Any], n_samples: int) -> dict[str, float]:
-    """``{"min_ade", "min_fde"}`` (m, mean over windows) of one forecaster on one batch.
+    """``{"min_ade", "min_fde"}`` (m, mean over windows) of one forecaster on one batch, plus
+    ``obstacle_rate`` where the batch carries scoring crops (``obstacle_map``, see :func:`evaluate_forecasts`).
 
     Raises:
         ValueError: If the prediction does not have shape (N, n_samples, H, 2).
@@ -155,7 +166,21 @@ def score(forecaster: Any, batch: Mapping[str, Any], n_samples: int) -> dict[str
     expected = (fut.shape[0], n_samples, *fut.shape[1:])
     if pred.shape != expected:
         raise ValueError(f"{type(forecaster).__name__}.predict returned shape {pred.shape}, expected {expected}")
-    return {"min_ade": float(min_ade(pred, fut).mean()), "min_fde": float(min_fde(pred, fut).mean())}
+    out = {"min_ade": float(min_ade(pred, fut).mean()), "min_fde": float(min_fde(pred, fut).mean())}
+    if "obstacle_map" in batch:
+        out["obstacle_rate"] = _obstacle_rate(pred, batch["obstacle_map"])
+    return out
+
+
+def _obstacle_rate(points: np.ndarray, crops: np.ndarray) -> float:
+    from navzoo.forecast.map_eval import obstacle_hits
+
+    hit, inside = obstacle_hits(points, crops)
+    return float(hit.sum() / max(int(inside.sum()), 1))
+
+
+def _has_maps(batch: Mapping[str, Any]) -> bool:
+    return "map" in batch and bool(np.asarray(batch.get("has_map", [])).size) and bool(np.all(batch["has_map"]))
 
 
 def _even_subset(n: int, max_windows: int | None) -> np.ndarray:
@@ -175,6 +200,8 @@ def evaluate_forecasts(
     k_neighbors: int = 16,
     radius: float = 10.0,
     progress: Callable[[str], None] | None = None,
+    maps: str = "none",
+    map_dir: str | Path | None = None,
 ) -> dict[str, Any]:
     """Evaluate forecasters on a split; see the module doc for the protocol.
 
@@ -191,19 +218,30 @@ def evaluate_forecasts(
         k_neighbors: Neighbour slots per window.
         radius: Neighbour radius (m).
         progress: Called with a line of text after each scene and model.
+        maps: ``"opentraj"``: occupancy crops for scenes with an OpenTraj map (module doc); ``"none"``.
+        map_dir: OpenTraj folder; default the ``opentraj`` folder beside ``data_dir`` if there is one, else
+            :func:`navzoo.forecast.scene_maps.default_map_dir`.
 
     Returns:
         ``{<model>: {"min_ade", "min_fde"} (mean over scenes), "scenes": {scene: {"windows", "dt",
         "seconds": {<model>: s}, <model>: {"min_ade", "min_fde"}}}, "config": {...}}``.
 
     Raises:
-        ValueError: On an unknown split, model or scene, or ``samples < 1``.
+        ValueError: On an unknown split, model, scene or maps option, or ``samples < 1``.
+        FileNotFoundError: If a scene with an OpenTraj map is evaluated with ``maps="opentraj"`` and the
+            map's files are not in ``map_dir``.
     """
     from navzoo.forecast.data import default_data_dir, discover, load_windows, split_files, subset
+    from navzoo.forecast.scene_maps import OPENTRAJ_MAPS, attach_maps, default_map_dir
 
     if samples < 1:
         raise ValueError(f"samples must be >= 1, got {samples!r}")
+    if maps not in ("opentraj", "none"):
+        raise ValueError(f"unknown maps option {maps!r}; expected 'opentraj' or 'none'")
     root = Path(data_dir) if data_dir is not None else default_data_dir()
+    if map_dir is None:
+        map_dir = root.parent / "opentraj" if (root.parent / "opentraj").is_dir() else default_map_dir()
+    map_dir = Path(map_dir)
     names = list(models) if models else forecaster_names()
     if not models and split == "loo" and not os.environ.get("NAVZOO_DIFFUSION_MODEL"):
         names = [n for n in names if n != "diffusion"]  # the shipped model saw every scene (see _diffusion)
@@ -236,13 +274,24 @@ def evaluate_forecasts(
         forecasters = {name: make_forecaster(name, context) for name in names}
         for scene, path in chosen.items():
             batch = load_windows(path, k_neighbors=k_neighbors, radius=radius)
+            map_found = scene in OPENTRAJ_MAPS and (map_dir / OPENTRAJ_MAPS[scene]).is_dir()
+            if maps == "opentraj" and scene in OPENTRAJ_MAPS and not map_found:
+                raise FileNotFoundError(f"scene {scene!r} has an OpenTraj map, but {map_dir / OPENTRAJ_MAPS[scene]} "
+                                        "does not exist; pass --map-dir (the OpenTraj folder) or --maps none")
+            if map_found:
+                with_map = attach_maps(batch, scene, map_dir)
+                batch = with_map if maps == "opentraj" else dict(batch)
+                batch["obstacle_map"] = with_map["map"]  # scoring only; the models read map / has_map
             total = int(batch["hist"].shape[0])
             batch = subset(batch, _even_subset(total, max_windows))
             n = int(batch["hist"].shape[0])
             if n == 0:
                 raise ValueError(f"scene {scene!r} ({path}) has no window of 20 consecutive frames")
             entry: dict[str, Any] = {"windows": n, "windows_total": total, "dt": float(batch["dt"][0]),
-                                     "seconds": {}}
+                                     "map": _has_maps(batch), "seconds": {}}
+            if "obstacle_map" in batch:
+                entry["ground_truth_obstacle_rate"] = _obstacle_rate(np.asarray(batch["fut"])[:, None],
+                                                                     batch["obstacle_map"])
             for name, model in forecasters.items():
                 t0 = time.perf_counter()
                 entry[name] = score(model, batch, samples)
@@ -259,7 +308,8 @@ def evaluate_forecasts(
     result["scenes"] = per_scene
     result["config"] = {"data": str(root), "split": split, "samples": samples, "obs_len": 8, "pred_len": 12,
                         "k_neighbors": k_neighbors, "radius": radius, "max_windows": max_windows or None,
-                        "seed": seed, "average": "unweighted mean over scenes"}
+                        "seed": seed, "average": "unweighted mean over scenes", "maps": maps,
+                        "map_dir": str(map_dir) if maps == "opentraj" else None}
     return result
 
 
@@ -292,6 +342,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--neighbors", type=int, default=16, help="neighbour slots per window (default 16)")
     parser.add_argument("--radius", type=float, default=10.0, help="neighbour radius in m (default 10)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--maps", default="none", choices=["opentraj", "none"],
+                        help="opentraj: occupancy crops from the OpenTraj obstacle map where a scene has one in its "
+                             "frame (biwi_eth) for map-aware models; none: no map for any window (default none)")
+    parser.add_argument("--map-dir", default=None,
+                        help="OpenTraj folder (default: 'opentraj' beside --data, else ../shared/data/trajectories/opentraj)")
     parser.add_argument("--out", default=None, help="also write the JSON result to this file")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
 
@@ -308,6 +363,7 @@ def run_cli(args: argparse.Namespace) -> int:
         data_dir=args.data, split=args.split, samples=args.samples, models=_names(args.models),
         scenes=_names(args.scenes), max_windows=args.max_windows, seed=args.seed, k_neighbors=args.neighbors,
         radius=args.radius, progress=None if args.json else (lambda line: print(line, file=sys.stderr, flush=True)),
+        maps=args.maps, map_dir=args.map_dir,
     )
     text = json.dumps(result)
     if args.out:

@@ -35,16 +35,35 @@ __all__ = ["add_arguments", "load_data", "load_sim_data", "main", "run_cli"]
 
 
 def load_data(split: str = "val", test_scene: str | None = None, data_dir: str | None = None,
-              k_neighbors: int = 16) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, Any]]:
-    """(train windows, validation windows, description) of a split, agent-centric."""
+              k_neighbors: int = 16, maps: str = "none", map_cells: int = 0,
+              map_dir: str | None = None) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, Any]]:
+    """(train windows, validation windows, description) of a split, agent-centric.
+
+    With ``maps="opentraj"`` (and ``map_cells``), windows of scenes with an OpenTraj obstacle map
+    (:mod:`navzoo.forecast.scene_maps`, ``biwi_eth``) carry its crops (``has_map`` True); the other
+    scenes' windows carry an all-zero map with ``has_map`` False.
+
+    Raises:
+        ValueError: On an unknown ``maps`` option, or ``"opentraj"`` without ``map_cells``.
+    """
     from navzoo.forecast import data as fdata
 
+    if maps not in ("none", "opentraj"):
+        raise ValueError(f"unknown maps option {maps!r}; expected 'none' or 'opentraj'")
+    if maps == "opentraj" and not map_cells:
+        raise ValueError("real-data maps need a model with a map input (--map-cells 32)")
     kw = {"k_neighbors": k_neighbors}
     tr = fdata.load_split(data_dir, split, "train", test_scene, **kw)
     te = fdata.load_split(data_dir, split, "test", test_scene, **kw)
+    if maps == "opentraj":
+        from navzoo.forecast.scene_maps import MAP_EXTENT, attach_maps
+
+        tr = {k: attach_maps(v, k, map_dir, MAP_EXTENT, map_cells) for k, v in tr.items()}
+        te = {k: attach_maps(v, k, map_dir, MAP_EXTENT, map_cells) for k, v in te.items()}
     train_w, val_w = fdata.concat(tr.values()), fdata.concat(te.values())
     desc = {"split": split, "test_scene": test_scene, "train_windows": {k: fdata.batch_size(v) for k, v in tr.items()},
-            "val_windows": {k: fdata.batch_size(v) for k, v in te.items()}}
+            "val_windows": {k: fdata.batch_size(v) for k, v in te.items()}, "real_maps": maps,
+            "real_map_windows": {k: int(np.sum(v["has_map"])) for k, v in tr.items() if "has_map" in v}}
     return train_w, val_w, desc
 
 
@@ -125,6 +144,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-augment", action="store_true", help="train on the windows as they are")
     parser.add_argument("--map-cells", type=int, default=0,
                         help="occupancy-crop input of the model (cells over 8 m; 0 = no map input)")
+    parser.add_argument("--real-maps", default="none", choices=["none", "opentraj"],
+                        help="opentraj: ETH/UCY windows of scenes with an OpenTraj obstacle map (biwi_eth) get its "
+                             "crops (needs --map-cells); none: every ETH/UCY window has 'no map' (default)")
     parser.add_argument("--sim-data", default=None, metavar="NPZ",
                         help="add map-aware windows of simulated crowds (python -m navzoo.forecast.sim_data)")
     parser.add_argument("--sim-val-frac", type=float, default=0.1,
@@ -138,14 +160,15 @@ def run_cli(args: argparse.Namespace) -> int:
 
     torch.set_num_threads(max(1, torch.get_num_threads()))
     t0 = time.time()
-    train_w, val_w, desc = load_data(args.split, args.test_scene, args.data)
+    map_cells, sim_data = getattr(args, "map_cells", 0), getattr(args, "sim_data", None)
+    train_w, val_w, desc = load_data(args.split, args.test_scene, args.data, maps=getattr(args, "real_maps", "none"),
+                                     map_cells=map_cells)
     def log(message: str) -> None:
         print(message, file=sys.stderr, flush=True)
 
     log(f"{sum(desc['train_windows'].values())} training windows {desc['train_windows']}, "
         f"{sum(desc['val_windows'].values())} validation windows, loaded in {time.time() - t0:.1f} s")
     extra_val = None
-    map_cells, sim_data = getattr(args, "map_cells", 0), getattr(args, "sim_data", None)
     if sim_data:
         from navzoo.forecast import data as fdata
         from navzoo.forecast.sim_data import with_map
@@ -153,7 +176,7 @@ def run_cli(args: argparse.Namespace) -> int:
         sim_train, sim_val, sim_desc = load_sim_data(sim_data, map_cells, getattr(args, "sim_val_frac", 0.1), args.seed)
         keep = lambda w: {k: v for k, v in w.items() if k in _MODEL_KEYS}  # noqa: E731
         train_w, val_w = keep(train_w), keep(val_w)
-        if map_cells:  # ETH/UCY: zero map, has_map False
+        if map_cells:  # ETH/UCY: zero map, has_map False (unless --real-maps gave a scene its map)
             train_w, val_w = with_map(train_w, map_cells), with_map(val_w, map_cells)
         train_w = fdata.concat([train_w, sim_train])
         if sim_val is not None:
@@ -162,7 +185,7 @@ def run_cli(args: argparse.Namespace) -> int:
         log(f"+ {sum(sim_desc['train_windows'].values())} sim training windows from {sim_data}"
             f" ({len(sim_desc['train_windows'])} scene/crowd runs), "
             f"{sum(sim_desc['val_windows'].values())} held out (scenes {sim_desc['held_out_scenes']})")
-    elif map_cells:
+    elif map_cells and desc["real_maps"] == "none":
         log(f"--map-cells {map_cells} without --sim-data: no window has a map (the model learns only its 'no map' input)")
     # ETH/UCY windows carry no map (docs/crowd.md); 16k windows call for a small, regularised model.
     model_cfg = DiffusionConfig(base=args.base, map_cells=map_cells, dropout=args.dropout,
