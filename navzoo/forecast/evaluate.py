@@ -223,8 +223,9 @@ def evaluate_forecasts(
             :func:`navzoo.forecast.scene_maps.default_map_dir`.
 
     Returns:
-        ``{<model>: {"min_ade", "min_fde"} (mean over scenes), "scenes": {scene: {"windows", "dt",
-        "seconds": {<model>: s}, <model>: {"min_ade", "min_fde"}}}, "config": {...}}``.
+        ``{<model>: {"min_ade", "min_fde"} (mean over scenes), "scenes": {scene: {"windows", "dt", "map",
+        "seconds": {<model>: s}, <model>: {"min_ade", "min_fde"[, "obstacle_rate"]}[,
+        "ground_truth_obstacle_rate"]}}, "config": {...}}`` (obstacle rates for scenes whose map is found).
 
     Raises:
         ValueError: On an unknown split, model, scene or maps option, or ``samples < 1``.

@@ -1,7 +1,8 @@
 """Does a forecaster keep its futures off obstacles? Forecasts on map-aware windows of simulated crowds.
 
-ETH/UCY gives no maps, so the map input of the trajectory diffusion model can only be judged on the
-simulated-crowd windows of :mod:`navzoo.forecast.sim_data`. This module records fresh crowds (social
+Of the ETH/UCY recordings only ``biwi_eth`` has an obstacle map in its frame (:mod:`navzoo.forecast.scene_maps`,
+``navzoo eval forecast --maps opentraj``), so the map input of the trajectory diffusion model is judged on
+the simulated-crowd windows of :mod:`navzoo.forecast.sim_data`. This module records fresh crowds (social
 force and ORCA, a seed not used for training) in scenes the model did not train on, and scores each
 forecaster on the same windows:
 

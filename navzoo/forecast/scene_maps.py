@@ -36,8 +36,8 @@ import numpy as np
 
 from navzoo.world.occupancy import OccupancyGrid
 
-__all__ = ["OPENTRAJ_MAPS", "MAP_EXTENT", "MAP_CELLS", "default_map_dir", "opentraj_grid", "scene_grid",
-           "map_crops", "attach_maps"]
+__all__ = ["OPENTRAJ_MAPS", "MAP_EXTENT", "MAP_CELLS", "default_map_dir", "opentraj_grid", "map_crops",
+           "attach_maps"]
 
 #: eth_ucy scene -> OpenTraj folder holding ``map.png`` and ``H.txt`` in the same world frame.
 OPENTRAJ_MAPS: dict[str, str] = {"biwi_eth": "ETH/seq_eth"}
@@ -118,11 +118,6 @@ def _opentraj_grid(folder: str, resolution: float, threshold: int, wall_radius: 
     return grid.inflate(wall_radius) if wall_radius > 0 and r.size else grid
 
 
-def scene_grid(scene: str, map_dir: str | Path | None = None) -> OccupancyGrid | None:
-    """The occupancy grid used for ``scene``'s windows (:func:`opentraj_grid` with its defaults), or None."""
-    return opentraj_grid(scene, map_dir)
-
-
 def map_crops(batch: Mapping[str, Any], grid: OccupancyGrid, map_extent: float = MAP_EXTENT,
               map_cells: int = MAP_CELLS) -> np.ndarray:
     """``(N, C, C)`` float32 occupancy crops of an agent-centric batch (:func:`navzoo.forecast.data.normalize`).
@@ -142,7 +137,7 @@ def attach_maps(batch: Mapping[str, Any], scene: str, map_dir: str | Path | None
     where it has a map (:data:`OPENTRAJ_MAPS`), zeros with ``has_map`` False otherwise."""
     out = dict(batch)
     n = int(np.asarray(batch["hist"]).shape[0])
-    grid = scene_grid(scene, map_dir)
+    grid = opentraj_grid(scene, map_dir)
     if grid is None or n == 0:
         out["map"] = np.zeros((n, map_cells, map_cells), np.float32)
         out["has_map"] = np.zeros(n, bool)
