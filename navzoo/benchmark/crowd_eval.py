@@ -560,6 +560,10 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
         raise ValueError(f"workers must be >= 1, got {workers!r}")
     if people is not None and people < 1:
         raise ValueError(f"people must be >= 1, got {people!r}")
+    rows = list(RELIABILITY_ROWS if rows is None else rows)
+    bad = [r for r in rows if r not in RELIABILITY_ROWS]
+    if bad:  # checked before the realism part, which runs for minutes
+        raise ValueError(f"unknown reliability row(s) {bad}; choose from {', '.join(RELIABILITY_ROWS)}")
     result: dict[str, Any] = {"quick": quick, "machine": _machine()}
 
     def save(partial: bool) -> None:
@@ -572,10 +576,6 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
     counts = [people] * len(scenes) if people is not None else None
     result["realism"] = realism(crowds, scenes, seconds, seed, workers, counts, data_dir)
     save(True)
-    rows = list(RELIABILITY_ROWS if rows is None else rows)
-    bad = [r for r in rows if r not in RELIABILITY_ROWS]
-    if bad:
-        raise ValueError(f"unknown reliability row(s) {bad}; choose from {', '.join(RELIABILITY_ROWS)}")
     rows = [r for r in rows if amp or RELIABILITY_ROWS[r][1] != "amp"]
 
     def row_done(so_far: dict[str, Any]) -> None:  # a long run keeps every finished row

@@ -202,6 +202,7 @@ def test_save_load_round_trip(sim_file):
     assert [r["scene"] for r in meta["runs"]] == meta["scenes"] and meta["map_cells"] == 16
 
 
+@pytest.mark.skipif(not fdata.default_data_dir().is_dir(), reason="ETH/UCY data not available (the CLI trains on it too)")
 def test_train_cli_with_sim_data(sim_file, tmp_path):
     from navzoo.cli import main
 
