@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from navzoo.forecast.sim_data import MAP_EXTENT, map_heading
 from navzoo.world.occupancy import OccupancyGrid
 
 __all__ = ["OPENTRAJ_MAPS", "MAP_EXTENT", "MAP_CELLS", "default_map_dir", "opentraj_grid", "map_crops",
@@ -41,8 +42,7 @@ __all__ = ["OPENTRAJ_MAPS", "MAP_EXTENT", "MAP_CELLS", "default_map_dir", "opent
 
 #: eth_ucy scene -> OpenTraj folder holding ``map.png`` and ``H.txt`` in the same world frame.
 OPENTRAJ_MAPS: dict[str, str] = {"biwi_eth": "ETH/seq_eth"}
-#: Crop side (m) and cells: the diffusion model's (navzoo.agents.diffusion.crowd.MAP_EXTENT, 32 cells).
-MAP_EXTENT = 8.0
+#: Crop cells: the shipped diffusion model's (its side is ``MAP_EXTENT``, the simulated windows' 8 m).
 MAP_CELLS = 32
 
 
@@ -125,8 +125,6 @@ def map_crops(batch: Mapping[str, Any], grid: OccupancyGrid, map_extent: float =
     Each crop is centred on the window's current position (``origin``) and turned to its frame's heading,
     exactly as the env's diffusion crowd and :mod:`navzoo.forecast.sim_data` crop a scene's grid.
     """
-    from navzoo.forecast.sim_data import map_heading
-
     origin = np.asarray(batch["origin"], dtype=np.float64).reshape(-1, 2)
     return np.asarray(grid.crop_many(origin, map_heading(batch), float(map_extent), int(map_cells)), np.float32)
 
