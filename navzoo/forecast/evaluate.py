@@ -13,7 +13,10 @@ seed) and returns an object with ``predict(batch, n_samples) -> (N, S, H, 2)`` i
 Protocol: windows of 8 observed + 12 future steps with their neighbours, agent-centric
 (:mod:`navzoo.forecast.data`); ``--split val`` tests on ``val/<scene>_val.txt`` (one fold, trained on
 the ``train`` files), ``--split loo`` tests on each scene's ``all_data`` with the other scenes'
-``all_data`` as the fold's training files. Per scene: minADE and minFDE over ``--samples`` samples
+``all_data`` as the fold's training files. A learned model under ``loo`` needs one model per fold, trained
+without the fold's scene: ``--loo-models DIR`` gives the diffusion forecaster ``DIR/<scene>/`` for the
+fold of ``<scene>`` (``navzoo train diffusion --split loo --test-scene <scene> --export DIR/<scene>``); a
+model whose ``config.json`` does not say it was trained without that scene is refused. Per scene: minADE and minFDE over ``--samples`` samples
 (m, averaged over windows); ``average``: the unweighted mean over scenes (the usual ETH/UCY
 convention). Every model sees exactly the same windows.
 
@@ -50,6 +53,7 @@ __all__ = [
     "make_forecaster",
     "score",
     "evaluate_forecasts",
+    "loo_model_dir",
     "format_table",
     "add_arguments",
     "run_cli",
@@ -67,6 +71,7 @@ class ForecastContext:
         train_files: Scene -> file of the fold's training data (a trained model must not have seen
             the test files; e.g. pick the checkpoint trained without ``test_scene``).
         seed: Seed for stochastic forecasters.
+        loo_models: Folder of per-fold models (``<loo_models>/<test_scene>/``) for ``"loo"``, or None.
     """
 
     data_dir: Path
@@ -74,6 +79,7 @@ class ForecastContext:
     test_scene: str | None
     train_files: Mapping[str, Path] = field(default_factory=dict)
     seed: int = 0
+    loo_models: Path | None = None
 
 
 ForecasterFactory = Callable[[ForecastContext], Any]
@@ -139,12 +145,41 @@ def _diffusion(context: ForecastContext) -> Any:
 
     from navzoo.agents.diffusion.forecaster import MODEL_ENV, DiffusionForecaster
 
+    if context.split == "loo" and context.loo_models is not None:
+        return DiffusionForecaster(loo_model_dir(context.loo_models, context.test_scene), seed=context.seed)
     if context.split == "loo" and not os.environ.get(MODEL_ENV):
         raise ValueError(
             "the shipped diffusion model was trained on the train part of all five scenes, so it has seen every "
             "leave-one-scene-out test scene; train one per held-out scene (navzoo train diffusion --split loo "
-            f"--test-scene {context.test_scene} --export DIR) and set {MODEL_ENV}=DIR")
+            f"--test-scene {context.test_scene} --export DIR/{context.test_scene}) and pass --loo-models DIR")
     return DiffusionForecaster(seed=context.seed)
+
+
+def loo_model_dir(root: str | Path, test_scene: str | None) -> Path:
+    """``<root>/<test_scene>``, the exported model of one leave-one-scene-out fold, after checking that its
+    ``config.json`` records a ``loo`` training without ``test_scene``.
+
+    Raises:
+        FileNotFoundError: If the folder or its ``config.json`` is missing.
+        ValueError: If the model was not trained on the ``loo`` split with ``test_scene`` held out.
+    """
+    folder = Path(root) / str(test_scene)
+    cfg_path = folder / "config.json"
+    if not cfg_path.is_file():
+        raise FileNotFoundError(f"no model for the leave-one-scene-out fold of {test_scene!r}: {cfg_path} does not "
+                                f"exist (navzoo train diffusion --split loo --test-scene {test_scene} --export {folder})")
+    try:
+        data = json.loads(cfg_path.read_text()).get("data") or {}
+    except (json.JSONDecodeError, AttributeError) as exc:
+        raise ValueError(f"{cfg_path} is not a model config: {exc}") from exc
+    if data.get("split") != "loo" or data.get("test_scene") != test_scene:
+        raise ValueError(f"{folder} was trained on split {data.get('split')!r} with test scene "
+                         f"{data.get('test_scene')!r}; the fold of {test_scene!r} needs a model trained with "
+                         f"--split loo --test-scene {test_scene}")
+    seen = set(data.get("train_windows") or {}) | set(data.get("val_windows") or {})
+    if test_scene in seen:
+        raise ValueError(f"{folder} saw {test_scene!r} in training or validation ({cfg_path})")
+    return folder
 
 
 register_forecaster("constant_velocity", _constant_velocity)
@@ -202,6 +237,7 @@ def evaluate_forecasts(
     progress: Callable[[str], None] | None = None,
     maps: str = "none",
     map_dir: str | Path | None = None,
+    loo_models: str | Path | None = None,
 ) -> dict[str, Any]:
     """Evaluate forecasters on a split; see the module doc for the protocol.
 
@@ -221,6 +257,9 @@ def evaluate_forecasts(
         maps: ``"opentraj"``: occupancy crops for scenes with an OpenTraj map (module doc); ``"none"``.
         map_dir: OpenTraj folder; default the ``opentraj`` folder beside ``data_dir`` if there is one, else
             :func:`navzoo.forecast.scene_maps.default_map_dir`.
+        loo_models: ``"loo"`` only: folder with one exported diffusion model per held-out scene
+            (``<loo_models>/<scene>/``, checked by :func:`loo_model_dir`); the diffusion model is then
+            evaluated by default.
 
     Returns:
         ``{<model>: {"min_ade", "min_fde"} (mean over scenes), "scenes": {scene: {"windows", "dt", "map",
@@ -244,7 +283,9 @@ def evaluate_forecasts(
         map_dir = root.parent / "opentraj" if (root.parent / "opentraj").is_dir() else default_map_dir()
     map_dir = Path(map_dir)
     names = list(models) if models else forecaster_names()
-    if not models and split == "loo" and not os.environ.get("NAVZOO_DIFFUSION_MODEL"):
+    if loo_models is not None and split != "loo":
+        raise ValueError(f"loo_models is for split 'loo' (one model per held-out scene), got split {split!r}")
+    if not models and split == "loo" and loo_models is None and not os.environ.get("NAVZOO_DIFFUSION_MODEL"):
         names = [n for n in names if n != "diffusion"]  # the shipped model saw every scene (see _diffusion)
     for name in names:
         if name not in _REGISTRY:
@@ -271,7 +312,8 @@ def evaluate_forecasts(
         chosen = {s: p for s, p in test.items() if not scenes or s in scenes}
         if not chosen:
             continue
-        context = ForecastContext(data_dir=root, split=split, test_scene=held_out, train_files=train, seed=seed)
+        context = ForecastContext(data_dir=root, split=split, test_scene=held_out, train_files=train, seed=seed,
+                                  loo_models=None if loo_models is None else Path(loo_models))
         forecasters = {name: make_forecaster(name, context) for name in names}
         for scene, path in chosen.items():
             batch = load_windows(path, k_neighbors=k_neighbors, radius=radius)
@@ -310,7 +352,8 @@ def evaluate_forecasts(
     result["config"] = {"data": str(root), "split": split, "samples": samples, "obs_len": 8, "pred_len": 12,
                         "k_neighbors": k_neighbors, "radius": radius, "max_windows": max_windows or None,
                         "seed": seed, "average": "unweighted mean over scenes", "maps": maps,
-                        "map_dir": str(map_dir) if maps == "opentraj" else None}
+                        "map_dir": str(map_dir) if maps == "opentraj" else None,
+                        "loo_models": None if loo_models is None else str(loo_models)}
     return result
 
 
@@ -348,6 +391,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "frame (biwi_eth) for map-aware models; none: no map for any window (default none)")
     parser.add_argument("--map-dir", default=None,
                         help="OpenTraj folder (default: 'opentraj' beside --data, else ../shared/data/trajectories/opentraj)")
+    parser.add_argument("--loo-models", default=None,
+                        help="with --split loo: folder of per-fold diffusion models, DIR/<scene>/ trained without "
+                             "<scene> (navzoo train diffusion --split loo --test-scene <scene> --export DIR/<scene>)")
     parser.add_argument("--out", default=None, help="also write the JSON result to this file")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
 
@@ -364,7 +410,7 @@ def run_cli(args: argparse.Namespace) -> int:
         data_dir=args.data, split=args.split, samples=args.samples, models=_names(args.models),
         scenes=_names(args.scenes), max_windows=args.max_windows, seed=args.seed, k_neighbors=args.neighbors,
         radius=args.radius, progress=None if args.json else (lambda line: print(line, file=sys.stderr, flush=True)),
-        maps=args.maps, map_dir=args.map_dir,
+        maps=args.maps, map_dir=args.map_dir, loo_models=args.loo_models,
     )
     text = json.dumps(result)
     if args.out:

@@ -3,8 +3,9 @@
 Data: the ETH/UCY prediction windows of :mod:`navzoo.forecast.data` (8 observed + 12 future steps,
 16 neighbours within 10 m, agent-centric frames, each window with its scene's time step), from one
 side of a split: ``--split val`` trains on the files' ``train`` part of all five scenes and validates
-on their ``val`` part; ``--split loo --test-scene S`` trains on the other four scenes' whole
-recordings. Training resumes from ``<out>/checkpoint`` when the same command runs again; ``--export
+on their ``val`` part; ``--split loo --test-scene S`` trains on the ``train`` part of the other four
+scenes and validates on their ``val`` part, so neither the weights nor their selection see scene S
+(the test scene of ``navzoo eval forecast --split loo --loo-models DIR``). Training resumes from ``<out>/checkpoint`` when the same command runs again; ``--export
 DIR`` writes the EMA weights as a shippable model (``model.pt`` + ``config.json``).
 
 Map-aware training: ``--sim-data FILE.npz --map-cells 32`` adds the windows of simulated crowds in
@@ -53,8 +54,11 @@ def load_data(split: str = "val", test_scene: str | None = None, data_dir: str |
     if maps == "opentraj" and not map_cells:
         raise ValueError("real-data maps need a model with a map input (--map-cells 32)")
     kw = {"k_neighbors": k_neighbors}
-    tr = fdata.load_split(data_dir, split, "train", test_scene, **kw)
-    te = fdata.load_split(data_dir, split, "test", test_scene, **kw)
+    if split == "loo":
+        tr, te = _loo_train_val(data_dir, test_scene, **kw)
+    else:
+        tr = fdata.load_split(data_dir, split, "train", test_scene, **kw)
+        te = fdata.load_split(data_dir, split, "test", test_scene, **kw)
     if maps == "opentraj":
         from navzoo.forecast.scene_maps import MAP_EXTENT, attach_maps
 
@@ -65,6 +69,30 @@ def load_data(split: str = "val", test_scene: str | None = None, data_dir: str |
             "val_windows": {k: fdata.batch_size(v) for k, v in te.items()}, "real_maps": maps,
             "real_map_windows": {k: int(np.sum(v["has_map"])) for k, v in tr.items() if "has_map" in v}}
     return train_w, val_w, desc
+
+
+def _loo_train_val(data_dir: str | None, test_scene: str | None, **kw: Any
+                   ) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, dict[str, np.ndarray]]]:
+    """Training and validation windows of a leave-one-scene-out fold: the ``train/`` and ``val/`` files
+    of the four other scenes. The held-out scene is used for neither, so the weights chosen by
+    validation loss have not seen it (it is the test set of ``navzoo eval forecast --split loo``).
+
+    Raises:
+        ValueError: On an unknown test scene, or a folder without ``train/`` and ``val/`` files of the
+            other scenes.
+    """
+    from navzoo.forecast import data as fdata
+
+    root = data_dir or fdata.default_data_dir()
+    others, _ = fdata.split_files(root, "loo", test_scene)  # validates test_scene
+    files = fdata.discover(root)
+    missing = sorted(s for s in others if s not in files["train"] or s not in files["val"])
+    if missing:
+        raise ValueError(f"split 'loo' trains on the train/ files and validates on the val/ files of the other "
+                         f"scenes; {missing} lack one of them in {root}")
+    tr = {s: fdata.load_windows(files["train"][s], **kw) for s in others}
+    va = {s: fdata.load_windows(files["val"][s], **kw) for s in others}
+    return tr, va
 
 
 # What the trainer reads of a window (the rest is dropped to save memory when sim windows are added).
