@@ -64,6 +64,7 @@ __all__ = [
     "scene_name",
     "scene_dt",
     "read_tracks",
+    "resample_tracks",
     "discover",
     "split_files",
     "build_windows",
@@ -205,6 +206,46 @@ def read_tracks(path: str | Path, scene: str | None = None, dt: float | None = N
     scene = scene or scene_name(path)
     return Tracks(scene=scene, dt=scene_dt(scene) if dt is None else float(dt), frame_step=max(frame_step, 1),
                   frame=frame, ped=ped, xy=xy, path=path)
+
+
+def resample_tracks(tracks: Tracks, dt: float) -> Tracks:
+    """The same people on another time base: every track linearly interpolated at the times
+    ``k * dt`` (from the file's first row) that fall within it.
+
+    Used to train a forecaster for a scene recorded at another rate than its training scenes (the
+    0.667 s rows of ``biwi_eth`` against 0.4 s elsewhere) without touching the held-out scene. Each
+    pedestrian's rows must be gap-free (as in these files); a track shorter than one new step
+    disappears. The result has ``frame_step`` 10 and synthetic frame ids ``10 k``.
+
+    Raises:
+        ValueError: If ``dt`` is not a positive finite number, or a pedestrian's track has a gap.
+    """
+    dt = float(dt)
+    if not (np.isfinite(dt) and dt > 0.0):
+        raise ValueError(f"resampling time step must be a positive number, got {dt!r}")
+    t_row = (tracks.frame - tracks.frame.min()) / tracks.frame_step * tracks.dt
+    order = np.lexsort((tracks.frame, tracks.ped))
+    ped, t, xy, frame = tracks.ped[order], t_row[order], tracks.xy[order], tracks.frame[order]
+    cuts = np.flatnonzero(np.diff(ped)) + 1
+    out_k, out_ped, out_xy = [], [], []
+    for idx in np.split(np.arange(ped.size), cuts):
+        if idx.size and np.any(np.diff(frame[idx]) != tracks.frame_step):
+            raise ValueError(f"{tracks.path or tracks.scene}: pedestrian {ped[idx[0]]} has a gap in its track; "
+                             "resampling needs gap-free tracks")
+        ts = t[idx]
+        k = np.arange(np.ceil(ts[0] / dt - 1e-9), np.floor(ts[-1] / dt + 1e-9) + 1).astype(np.int64)
+        if k.size == 0:
+            continue
+        times = k * dt
+        out_k.append(k)
+        out_ped.append(np.full(k.size, ped[idx[0]]))
+        out_xy.append(np.stack([np.interp(times, ts, xy[idx, 0]), np.interp(times, ts, xy[idx, 1])], axis=1))
+    if not out_k:
+        raise ValueError(f"{tracks.path or tracks.scene}: no track is longer than one step of {dt} s")
+    k_all, ped_all, xy_all = np.concatenate(out_k), np.concatenate(out_ped), np.concatenate(out_xy)
+    order = np.lexsort((ped_all, k_all))
+    return Tracks(scene=tracks.scene, dt=dt, frame_step=10, frame=10 * k_all[order], ped=ped_all[order],
+                  xy=xy_all[order], path=tracks.path)
 
 
 def discover(data_dir: str | Path) -> dict[str, dict[str, Path]]:

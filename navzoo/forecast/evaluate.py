@@ -176,7 +176,7 @@ def loo_model_dir(root: str | Path, test_scene: str | None) -> Path:
         raise ValueError(f"{folder} was trained on split {data.get('split')!r} with test scene "
                          f"{data.get('test_scene')!r}; the fold of {test_scene!r} needs a model trained with "
                          f"--split loo --test-scene {test_scene}")
-    seen = set(data.get("train_windows") or {}) | set(data.get("val_windows") or {})
+    seen = {k.split("@")[0] for k in (data.get("train_windows") or {})} | set(data.get("val_windows") or {})
     if test_scene in seen:
         raise ValueError(f"{folder} saw {test_scene!r} in training or validation ({cfg_path})")
     return folder

@@ -119,3 +119,47 @@ def test_trained_folds_are_evaluated_each_on_its_own_scene(three_scenes: Path, t
     with pytest.raises(FileNotFoundError, match="fold of 'beta'"):
         E.evaluate_forecasts(three_scenes, split="loo", samples=2, models=["diffusion"], scenes=["beta"],
                              loo_models=models)
+
+
+def test_resampling_keeps_the_walk_and_changes_the_time_base(tmp_path: Path) -> None:
+    from navzoo.forecast.data import build_windows, read_tracks, resample_tracks
+
+    rows = straight_rows(1, (0.0, 0.0), (0.4, 0.2), 40) + straight_rows(2, (5.0, 1.0), (-0.3, 0.0), 30, frame0=50)
+    tracks = read_tracks(write_tracks(tmp_path / "all_data" / "walk.txt", rows))
+    same = resample_tracks(tracks, tracks.dt)
+    np.testing.assert_allclose(same.xy, tracks.xy)
+    np.testing.assert_array_equal(same.ped, tracks.ped)
+    slow = resample_tracks(tracks, 0.667)
+    assert slow.dt == 0.667 and slow.frame_step == 10
+    one = slow.xy[slow.ped == 1]
+    # walker 1 moves 0.4 m / 0.4 s in x: at 0.667 s steps, 0.667 m per row, on the same straight line
+    np.testing.assert_allclose(np.diff(one[:, 0]), 0.667, atol=1e-9)
+    np.testing.assert_allclose(one[:, 1], 0.5 * one[:, 0], atol=1e-9)
+    assert len(one) == int(39 * 0.4 / 0.667) + 1
+    # the two walkers share the new time grid: walker 2 starts at the first grid time after its first row
+    t2 = slow.frame[slow.ped == 2] / 10 * 0.667
+    assert t2[0] >= 5 * 0.4 - 1e-9 and t2[0] - 0.667 < 5 * 0.4
+    w = build_windows(slow, k_neighbors=2)
+    assert w["hist"].shape[0] > 0 and np.all(w["dt"] == 0.667)
+    gap = rows[:10] + rows[12:40]
+    with pytest.raises(ValueError, match="gap"):
+        resample_tracks(read_tracks(write_tracks(tmp_path / "gap.txt", gap)), 0.667)
+    with pytest.raises(ValueError, match="positive"):
+        resample_tracks(tracks, 0.0)
+
+
+def test_time_base_augmentation_adds_resampled_training_windows_only(three_scenes: Path) -> None:
+    from navzoo.agents.diffusion.train import load_data
+
+    train, val, desc = load_data("loo", "gamma", str(three_scenes), resample_dt=(0.25,))
+    plain_train, plain_val, plain = load_data("loo", "gamma", str(three_scenes))
+    assert set(desc["train_windows"]) == {"alpha", "beta", "alpha@0.25s", "beta@0.25s"}
+    assert desc["val_windows"] == plain["val_windows"] and desc["resample_dt"] == [0.25]
+    assert desc["train_windows"]["alpha@0.25s"] > desc["train_windows"]["alpha"]  # more rows at a shorter step
+    assert train["hist"].shape[0] == sum(desc["train_windows"].values())
+    assert set(np.unique(train["dt"]).round(3)) == {0.25, 0.4}
+    # a step equal to the scenes' own adds nothing
+    _, _, same = load_data("loo", "gamma", str(three_scenes), resample_dt=(0.4,))
+    assert same["train_windows"] == plain["train_windows"]
+    with pytest.raises(ValueError, match="positive time steps"):
+        load_data("loo", "gamma", str(three_scenes), resample_dt=(-1.0,))

@@ -37,8 +37,14 @@ __all__ = ["add_arguments", "load_data", "load_sim_data", "main", "run_cli"]
 
 def load_data(split: str = "val", test_scene: str | None = None, data_dir: str | None = None,
               k_neighbors: int = 16, maps: str = "none", map_cells: int = 0,
-              map_dir: str | None = None) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, Any]]:
+              map_dir: str | None = None, resample_dt: tuple[float, ...] = ()
+              ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, Any]]:
     """(train windows, validation windows, description) of a split, agent-centric.
+
+    ``resample_dt`` (time-base augmentation): for each step ``d`` given, every training file whose
+    scene has another time step is also read resampled at ``d`` (:func:`navzoo.forecast.data.resample_tracks`),
+    and its windows are added under ``"<scene>@<d>s"``. The validation windows are left as recorded.
+    A leave-one-scene-out fold for ``biwi_eth`` (0.667 s rows) otherwise never sees its time base.
 
     With ``maps="opentraj"`` (and ``map_cells``), windows of scenes with an OpenTraj obstacle map
     (:mod:`navzoo.forecast.scene_maps`, ``biwi_eth``) carry its crops (``has_map`` True); the other
@@ -55,27 +61,37 @@ def load_data(split: str = "val", test_scene: str | None = None, data_dir: str |
         raise ValueError("real-data maps need a model with a map input (--map-cells 32)")
     kw = {"k_neighbors": k_neighbors}
     if split == "loo":
-        tr, te = _loo_train_val(data_dir, test_scene, **kw)
+        tr, te, train_files = _loo_train_val(data_dir, test_scene, **kw)
     else:
         tr = fdata.load_split(data_dir, split, "train", test_scene, **kw)
         te = fdata.load_split(data_dir, split, "test", test_scene, **kw)
+        train_files = fdata.split_files(data_dir or fdata.default_data_dir(), split, test_scene)[0]
+    for d in resample_dt:
+        if not (isinstance(d, (int, float)) and np.isfinite(d) and d > 0):
+            raise ValueError(f"resample_dt must hold positive time steps (s), got {d!r}")
+        for scene, path in train_files.items():
+            if abs(fdata.scene_dt(scene) - d) > 1e-6:
+                resampled = fdata.resample_tracks(fdata.read_tracks(path), float(d))
+                tr[f"{scene}@{float(d):g}s"] = fdata.normalize(fdata.build_windows(resampled, **kw))
     if maps == "opentraj":
         from navzoo.forecast.scene_maps import MAP_EXTENT, attach_maps
 
-        tr = {k: attach_maps(v, k, map_dir, MAP_EXTENT, map_cells) for k, v in tr.items()}
+        tr = {k: attach_maps(v, k.split("@")[0], map_dir, MAP_EXTENT, map_cells) for k, v in tr.items()}
         te = {k: attach_maps(v, k, map_dir, MAP_EXTENT, map_cells) for k, v in te.items()}
     train_w, val_w = fdata.concat(tr.values()), fdata.concat(te.values())
     desc = {"split": split, "test_scene": test_scene, "train_windows": {k: fdata.batch_size(v) for k, v in tr.items()},
             "val_windows": {k: fdata.batch_size(v) for k, v in te.items()}, "real_maps": maps,
-            "real_map_windows": {k: int(np.sum(v["has_map"])) for k, v in tr.items() if "has_map" in v}}
+            "real_map_windows": {k: int(np.sum(v["has_map"])) for k, v in tr.items() if "has_map" in v},
+            "resample_dt": [float(d) for d in resample_dt]}
     return train_w, val_w, desc
 
 
 def _loo_train_val(data_dir: str | None, test_scene: str | None, **kw: Any
-                   ) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, dict[str, np.ndarray]]]:
+                   ) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, dict[str, np.ndarray]], dict[str, Path]]:
     """Training and validation windows of a leave-one-scene-out fold: the ``train/`` and ``val/`` files
     of the four other scenes. The held-out scene is used for neither, so the weights chosen by
     validation loss have not seen it (it is the test set of ``navzoo eval forecast --split loo``).
+    Returns (training windows, validation windows, training files), each by scene.
 
     Raises:
         ValueError: On an unknown test scene, or a folder without ``train/`` and ``val/`` files of the
@@ -92,7 +108,7 @@ def _loo_train_val(data_dir: str | None, test_scene: str | None, **kw: Any
                          f"scenes; {missing} lack one of them in {root}")
     tr = {s: fdata.load_windows(files["train"][s], **kw) for s in others}
     va = {s: fdata.load_windows(files["val"][s], **kw) for s in others}
-    return tr, va
+    return tr, va, {s: files["train"][s] for s in others}
 
 
 # What the trainer reads of a window (the rest is dropped to save memory when sim windows are added).
@@ -175,6 +191,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--real-maps", default="none", choices=["none", "opentraj"],
                         help="opentraj: ETH/UCY windows of scenes with an OpenTraj obstacle map (biwi_eth) get its "
                              "crops (needs --map-cells); none: every ETH/UCY window has 'no map' (default)")
+    parser.add_argument("--resample-dt", default="", metavar="DT[,DT]",
+                        help="time-base augmentation: also train on every ETH/UCY training file resampled at these "
+                             "steps (s) where its own step differs, e.g. 0.667 (biwi_eth's) for a leave-one-scene-out "
+                             "fold of biwi_eth")
     parser.add_argument("--sim-data", default=None, metavar="NPZ",
                         help="add map-aware windows of simulated crowds (python -m navzoo.forecast.sim_data)")
     parser.add_argument("--sim-val-frac", type=float, default=0.1,
@@ -189,8 +209,12 @@ def run_cli(args: argparse.Namespace) -> int:
     torch.set_num_threads(max(1, torch.get_num_threads()))
     t0 = time.time()
     map_cells, sim_data = getattr(args, "map_cells", 0), getattr(args, "sim_data", None)
+    try:
+        resample = tuple(float(x) for x in str(getattr(args, "resample_dt", "") or "").split(",") if x.strip())
+    except ValueError as exc:
+        raise ValueError(f"--resample-dt takes comma-separated time steps in seconds, got {args.resample_dt!r}") from exc
     train_w, val_w, desc = load_data(args.split, args.test_scene, args.data, maps=getattr(args, "real_maps", "none"),
-                                     map_cells=map_cells)
+                                     map_cells=map_cells, resample_dt=resample)
     def log(message: str) -> None:
         print(message, file=sys.stderr, flush=True)
 
