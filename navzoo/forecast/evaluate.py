@@ -238,6 +238,8 @@ def evaluate_forecasts(
     maps: str = "none",
     map_dir: str | Path | None = None,
     loo_models: str | Path | None = None,
+    done: Mapping[str, Mapping[str, Any]] | None = None,
+    on_scene: Callable[[dict[str, Any]], None] | None = None,
 ) -> dict[str, Any]:
     """Evaluate forecasters on a split; see the module doc for the protocol.
 
@@ -260,6 +262,10 @@ def evaluate_forecasts(
         loo_models: ``"loo"`` only: folder with one exported diffusion model per held-out scene
             (``<loo_models>/<scene>/``, checked by :func:`loo_model_dir`); the diffusion model is then
             evaluated by default.
+        done: Scene entries of an earlier, interrupted run with the same settings (its ``"scenes"``): a
+            scene found there with every requested model is not evaluated again.
+        on_scene: Called after every scene with the result so far (the same keys, over the scenes done),
+            e.g. to write it to a file, so a long evaluation loses nothing when it is stopped.
 
     Returns:
         ``{<model>: {"min_ade", "min_fde"} (mean over scenes), "scenes": {scene: {"windows", "dt", "map",
@@ -307,9 +313,21 @@ def evaluate_forecasts(
         if unknown:
             raise ValueError(f"unknown scene(s) {unknown} for split {split!r}; scenes: {available}")
 
+    config = {"data": str(root), "split": split, "samples": samples, "obs_len": 8, "pred_len": 12,
+              "k_neighbors": k_neighbors, "radius": radius, "max_windows": max_windows or None,
+              "seed": seed, "average": "unweighted mean over scenes", "maps": maps,
+              "map_dir": str(map_dir) if maps == "opentraj" else None,
+              "loo_models": None if loo_models is None else str(loo_models)}
     per_scene: dict[str, dict[str, Any]] = {}
     for held_out, train, test in folds:
         chosen = {s: p for s, p in test.items() if not scenes or s in scenes}
+        for scene in list(chosen):
+            earlier = (done or {}).get(scene)
+            if earlier is not None and all(name in earlier for name in names):
+                per_scene[scene] = dict(earlier)
+                del chosen[scene]
+                if progress:
+                    progress(f"{scene}: kept from the earlier run")
         if not chosen:
             continue
         context = ForecastContext(data_dir=root, split=split, test_scene=held_out, train_files=train, seed=seed,
@@ -343,17 +361,20 @@ def evaluate_forecasts(
                     progress(f"{scene}: {name} minADE {entry[name]['min_ade']:.3f} minFDE "
                              f"{entry[name]['min_fde']:.3f} ({n} windows, {entry['seconds'][name]:.1f} s)")
             per_scene[scene] = entry
+            if on_scene is not None:
+                on_scene(_assemble(names, per_scene, config))
+    return _assemble(names, per_scene, config)
 
+
+def _assemble(names: Sequence[str], per_scene: Mapping[str, Mapping[str, Any]], config: Mapping[str, Any]
+              ) -> dict[str, Any]:
+    """The result of :func:`evaluate_forecasts` over the scenes in ``per_scene``, in the folds' order."""
     result: dict[str, Any] = {}
     for name in names:
         result[name] = {key: float(np.mean([per_scene[s][name][key] for s in per_scene]))
                         for key in ("min_ade", "min_fde")}
-    result["scenes"] = per_scene
-    result["config"] = {"data": str(root), "split": split, "samples": samples, "obs_len": 8, "pred_len": 12,
-                        "k_neighbors": k_neighbors, "radius": radius, "max_windows": max_windows or None,
-                        "seed": seed, "average": "unweighted mean over scenes", "maps": maps,
-                        "map_dir": str(map_dir) if maps == "opentraj" else None,
-                        "loo_models": None if loo_models is None else str(loo_models)}
+    result["scenes"] = dict(per_scene)
+    result["config"] = dict(config)
     return result
 
 
@@ -398,6 +419,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
 
 
+def _partial_scenes(out: Path, args: argparse.Namespace) -> dict[str, Any] | None:
+    """The scenes of an interrupted run in ``out`` (written with ``"partial": true``) if it ran with the same
+    settings, else None (the file is then overwritten). A finished file is never reused."""
+    import sys
+
+    if not out.is_file():
+        return None
+    try:
+        earlier = json.loads(out.read_text())
+    except json.JSONDecodeError:
+        return None
+    if not (isinstance(earlier, dict) and earlier.get("partial") and isinstance(earlier.get("scenes"), dict)):
+        return None
+    cfg = earlier.get("config") or {}
+    from navzoo.forecast.data import default_data_dir
+
+    data = str(Path(args.data) if args.data is not None else default_data_dir())
+    same = (cfg.get("data") == data and cfg.get("split") == args.split and cfg.get("samples") == args.samples and cfg.get("seed") == args.seed
+            and cfg.get("k_neighbors") == args.neighbors and cfg.get("radius") == args.radius
+            and cfg.get("max_windows") == (args.max_windows or None) and cfg.get("maps") == args.maps
+            and cfg.get("loo_models") == (None if args.loo_models is None else str(args.loo_models)))
+    if not same:
+        print(f"{out} holds an interrupted run with other settings: starting again", file=sys.stderr, flush=True)
+        return None
+    print(f"resuming from {out}: {sorted(earlier['scenes'])} done", file=sys.stderr, flush=True)
+    return earlier["scenes"]
+
+
 def _names(text: str | None) -> list[str] | None:
     return [t.strip() for t in text.split(",") if t.strip()] if text else None
 
@@ -406,16 +455,25 @@ def run_cli(args: argparse.Namespace) -> int:
     """Run ``navzoo eval forecast`` from parsed arguments; prints the table or the JSON."""
     import sys
 
+    out = Path(args.out) if args.out else None
+    done = _partial_scenes(out, args) if out is not None else None
+
+    def write(result: dict[str, Any], partial: bool) -> None:
+        out.parent.mkdir(parents=True, exist_ok=True)  # type: ignore[union-attr]
+        tmp = out.with_name(out.name + ".tmp")  # type: ignore[union-attr]
+        tmp.write_text(json.dumps({**result, **({"partial": True} if partial else {})}, indent=2) + "\n")
+        tmp.replace(out)  # type: ignore[arg-type]
+
     result = evaluate_forecasts(
         data_dir=args.data, split=args.split, samples=args.samples, models=_names(args.models),
         scenes=_names(args.scenes), max_windows=args.max_windows, seed=args.seed, k_neighbors=args.neighbors,
         radius=args.radius, progress=None if args.json else (lambda line: print(line, file=sys.stderr, flush=True)),
-        maps=args.maps, map_dir=args.map_dir, loo_models=args.loo_models,
+        maps=args.maps, map_dir=args.map_dir, loo_models=args.loo_models, done=done,
+        on_scene=None if out is None else (lambda r: write(r, True)),
     )
     text = json.dumps(result)
-    if args.out:
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(json.dumps(result, indent=2) + "\n")
+    if out is not None:
+        write(result, False)
     print(text if args.json else format_table(result))
     return 0
 

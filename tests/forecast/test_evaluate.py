@@ -61,3 +61,43 @@ def test_cli_reports_bad_split_input(tmp_path: Path, capsys: pytest.CaptureFixtu
     (tmp_path / "only_all.txt").write_text("0\t1\t0.0\t0.0\n")
     assert main(["eval", "forecast", "--data", str(tmp_path), "--split", "val"]) == 2
     assert "val" in capsys.readouterr().err
+
+
+def test_an_interrupted_evaluation_resumes_from_its_out_file(tiny_dir: Path, tmp_path: Path,
+                                                              monkeypatch: pytest.MonkeyPatch,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "forecast.json"
+    args = ["eval", "forecast", "--data", str(tiny_dir), "--split", "loo", "--samples", "2",
+            "--models", "constant_velocity", "--out", str(out), "--json"]
+    real = E.score
+    calls: list[int] = []
+
+    def crash_on_second_scene(model, batch, n):  # noqa: ANN001, ANN202
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(model, batch, n)
+
+    monkeypatch.setattr(E, "score", crash_on_second_scene)
+    assert main(args) != 0  # the CLI reports the interruption
+    partial = json.loads(out.read_text())
+    assert partial["partial"] is True and list(partial["scenes"]) == ["alpha"]
+    assert partial["constant_velocity"] == partial["scenes"]["alpha"]["constant_velocity"]
+    # the rerun scores only the scene that is missing, and the finished file has no "partial" flag
+    calls.clear()
+    monkeypatch.setattr(E, "score", lambda m, b, n: (calls.append(1), real(m, b, n))[1])
+    capsys.readouterr()
+    assert main(args) == 0
+    assert len(calls) == 1
+    final = json.loads(out.read_text())
+    assert "partial" not in final and sorted(final["scenes"]) == ["alpha", "beta"]
+    assert "resuming" in capsys.readouterr().err
+    # a finished file is not reused, nor an interrupted one with other settings
+    calls.clear()
+    assert main(args) == 0 and len(calls) == 2
+    monkeypatch.setattr(E, "score", crash_on_second_scene)
+    calls.clear()
+    assert main(args) != 0 and json.loads(out.read_text())["partial"] is True
+    monkeypatch.setattr(E, "score", lambda m, b, n: (calls.append(1), real(m, b, n))[1])
+    calls.clear()
+    assert main(args[:7] + ["3"] + args[8:]) == 0 and len(calls) == 2
