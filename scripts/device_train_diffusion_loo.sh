@@ -5,7 +5,7 @@
 #
 #   once: mkdir -p .data && cp -r ../shared/data/trajectories/eth_ucy .data/ && echo /.data/ >> .git/info/exclude
 #   device run, carry [".whl", ".data"]:  LIMIT_S=420 bash scripts/device_train_diffusion_loo.sh
-#   back here: cat $FILES_AT/loo.tgz.part-* | tar xz -C training/diffusion_loo
+#   back here: mkdir -p training/diffusion_loo_resampled && cat $FILES_AT/loo.tgz.part-* | tar xz -C training/diffusion_loo_resampled
 #
 # Fold S trains on the train/ files of the four other scenes and picks its weights by the validation loss
 # on their val/ files (navzoo train diffusion --split loo --test-scene S), so nothing of scene S is seen.
@@ -18,18 +18,18 @@ export PYTHONPATH=/tmp/site:$PWD
 nproc; nvidia-smi --query-gpu=name,memory.total --format=csv,noheader
 [ -d .data/eth_ucy ] || { mkdir -p .data && tar xzf .eth_ucy.tgz -C .data; }
 SCENES=${SCENES:-biwi_eth crowds_zara01 crowds_zara03 students001 uni_examples}
-B=/tmp/loo_bundle && rm -rf $B && mkdir -p $B/models $B/runs
+B=/tmp/loo_bundle && rm -rf $B && mkdir -p $B/models $B/folds
 for S in $SCENES; do
   OMP_NUM_THREADS=3 python3 -m navzoo.agents.diffusion.train --out /tmp/loo_run/$S --data .data/eth_ucy --split loo \
     --test-scene $S --device cuda --batch-size "${BATCH:-512}" --steps "${STEPS:-60000}" --time-limit-s "${LIMIT_S:-420}" \
     --eval-every 500 --ckpt-every 2000 --map-cells 0 --seed "${SEED:-0}" --export $B/models/$S ${TRAIN_ARGS:-} --json \
-    > $B/runs/train_$S.log 2>&1 &
+    > $B/folds/train_$S.log 2>&1 &
 done
 wait
 for S in $SCENES; do
-  echo "$S: $(tail -1 $B/runs/train_$S.log | cut -c1-200)"
-  mkdir -p $B/runs/$S && cp /tmp/loo_run/$S/metrics.jsonl /tmp/loo_run/$S/checkpoint/meta.json $B/runs/$S/ 2>/dev/null
-  cp /tmp/loo_run/$S/checkpoint/best.json $B/runs/$S/ 2>/dev/null
+  echo "$S: $(tail -1 $B/folds/train_$S.log | cut -c1-200)"
+  mkdir -p $B/folds/$S && cp /tmp/loo_run/$S/metrics.jsonl /tmp/loo_run/$S/checkpoint/meta.json $B/folds/$S/ 2>/dev/null
+  cp /tmp/loo_run/$S/checkpoint/best.json $B/folds/$S/ 2>/dev/null
 done
 # $OUT holds at most 8 files: everything goes back in one archive (split at 15 MiB).
 tar czf - -C $B . | split -b 15m - "$OUT/loo.tgz.part-"
