@@ -163,3 +163,23 @@ def test_time_base_augmentation_adds_resampled_training_windows_only(three_scene
     assert same["train_windows"] == plain["train_windows"]
     with pytest.raises(ValueError, match="positive time steps"):
         load_data("loo", "gamma", str(three_scenes), resample_dt=(-1.0,))
+
+
+LOO_MODELS = Path(__file__).resolve().parents[2] / "training" / "diffusion_loo_resampled" / "models"
+REAL_SCENES = ("biwi_eth", "crowds_zara01", "crowds_zara03", "students001", "uni_examples")
+
+
+def test_the_committed_fold_models_pass_the_fold_checks() -> None:
+    for scene in REAL_SCENES:
+        folder = E.loo_model_dir(LOO_MODELS, scene)
+        data = json.loads((folder / "config.json").read_text())["data"]
+        assert data["resample_dt"] == [0.4, 0.667]
+        assert scene not in {k.split("@")[0] for k in data["train_windows"]} | set(data["val_windows"])
+
+
+def test_the_biwi_eth_fold_beats_the_baselines_on_its_held_out_scene(eth_ucy: Path) -> None:
+    result = E.evaluate_forecasts(eth_ucy, split="loo", samples=20, scenes=["biwi_eth"], max_windows=80,
+                                  models=["constant_velocity", "sfm", "diffusion"], loo_models=LOO_MODELS)
+    d, cv, sf = (result[k] for k in ("diffusion", "constant_velocity", "sfm"))
+    assert d["min_ade"] < 0.8 * min(cv["min_ade"], sf["min_ade"])
+    assert d["min_fde"] < 0.8 * min(cv["min_fde"], sf["min_fde"])
