@@ -13,11 +13,12 @@ seed) and returns an object with ``predict(batch, n_samples) -> (N, S, H, 2)`` i
 Protocol: windows of 8 observed + 12 future steps with their neighbours, agent-centric
 (:mod:`navzoo.forecast.data`); ``--split val`` tests on ``val/<scene>_val.txt`` (one fold, trained on
 the ``train`` files), ``--split loo`` tests on each scene's ``all_data`` with the other scenes'
-``all_data`` as the fold's training files. A learned model under ``loo`` needs one model per fold, trained
-without the fold's scene: ``--loo-models DIR`` gives the diffusion forecaster ``DIR/<scene>/`` for the
-fold of ``<scene>`` (``navzoo train diffusion --split loo --test-scene <scene> --export DIR/<scene>``); a
-model whose ``config.json`` does not say it was trained without that scene is refused. Per scene: minADE and minFDE over ``--samples`` samples
-(m, averaged over windows); ``average``: the unweighted mean over scenes (the usual ETH/UCY
+``all_data`` as the fold's training files. A learned model under ``loo`` needs one model per fold,
+trained without the fold's scene: ``--loo-models DIR`` gives the diffusion forecaster ``DIR/<scene>/``
+for the fold of ``<scene>`` (``navzoo train diffusion --split loo --test-scene <scene> --export
+DIR/<scene>``); a model whose ``config.json`` does not say it was trained without that scene is
+refused. ``--out`` is rewritten after every scene and resumed from (see :func:`run_cli`). Per scene:
+minADE and minFDE over ``--samples`` samples (m, averaged over windows); ``average``: the unweighted mean over scenes (the usual ETH/UCY
 convention). Every model sees exactly the same windows.
 
 Maps (``--maps opentraj``; default ``none``): windows of a scene with an OpenTraj obstacle map in its world
@@ -452,7 +453,11 @@ def _names(text: str | None) -> list[str] | None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    """Run ``navzoo eval forecast`` from parsed arguments; prints the table or the JSON."""
+    """Run ``navzoo eval forecast`` from parsed arguments; prints the table or the JSON.
+
+    With ``--out`` the result is written after every scene, with ``"partial": true`` until the end; a
+    rerun with the same settings keeps the scenes of such a partial file (:func:`_partial_scenes`).
+    """
     import sys
 
     out = Path(args.out) if args.out else None

@@ -5,7 +5,9 @@ Data: the ETH/UCY prediction windows of :mod:`navzoo.forecast.data` (8 observed 
 side of a split: ``--split val`` trains on the files' ``train`` part of all five scenes and validates
 on their ``val`` part; ``--split loo --test-scene S`` trains on the ``train`` part of the other four
 scenes and validates on their ``val`` part, so neither the weights nor their selection see scene S
-(the test scene of ``navzoo eval forecast --split loo --loo-models DIR``). Training resumes from ``<out>/checkpoint`` when the same command runs again; ``--export
+(the test scene of ``navzoo eval forecast --split loo --loo-models DIR``). ``--resample-dt`` adds the
+training files read at another time base (``load_data``). Training resumes from ``<out>/checkpoint``
+when the same command runs again; ``--export
 DIR`` writes the EMA weights as a shippable model (``model.pt`` + ``config.json``).
 
 Map-aware training: ``--sim-data FILE.npz --map-cells 32`` adds the windows of simulated crowds in
