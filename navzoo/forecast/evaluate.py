@@ -18,8 +18,8 @@ trained without the fold's scene: ``--loo-models DIR`` gives the diffusion forec
 for the fold of ``<scene>`` (``navzoo train diffusion --split loo --test-scene <scene> --export
 DIR/<scene>``); a model whose ``config.json`` does not say it was trained without that scene is
 refused. ``--out`` is rewritten after every scene and resumed from (see :func:`run_cli`). Per scene:
-minADE and minFDE over ``--samples`` samples (m, averaged over windows); ``average``: the unweighted mean over scenes (the usual ETH/UCY
-convention). Every model sees exactly the same windows.
+minADE and minFDE over ``--samples`` samples (m, averaged over windows); ``average``: the unweighted
+mean over scenes (the usual ETH/UCY convention). Every model sees exactly the same windows.
 
 Maps (``--maps opentraj``; default ``none``): windows of a scene with an OpenTraj obstacle map in its world
 frame (``biwi_eth``; :mod:`navzoo.forecast.scene_maps`) carry the occupancy crop around the person, which
