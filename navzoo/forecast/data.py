@@ -297,6 +297,8 @@ def split_files(data_dir: str | Path, split: str, test_scene: str | None = None)
         scenes = files["all"]
         if not scenes:
             raise ValueError(f"split 'loo' needs all_data/<scene>.txt files, none in {data_dir}")
+        if test_scene is None:
+            raise ValueError(f"split 'loo' needs the held-out scene (--test-scene); scenes: {sorted(scenes)}")
         if test_scene not in scenes:
             raise ValueError(f"unknown test scene {test_scene!r} for split 'loo'; scenes: {sorted(scenes)}")
         return {s: p for s, p in scenes.items() if s != test_scene}, {test_scene: scenes[test_scene]}

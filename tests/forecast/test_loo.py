@@ -65,6 +65,8 @@ def test_a_fold_without_the_other_scenes_val_files_is_refused(three_scenes: Path
         load_data("loo", "gamma", str(three_scenes))
     with pytest.raises(ValueError, match="unknown test scene"):
         load_data("loo", "delta", str(three_scenes))
+    with pytest.raises(ValueError, match="needs the held-out scene"):
+        load_data("loo", None, str(three_scenes))
 
 
 def _fake_model(folder: Path, split: str, test_scene: str | None, seen: tuple[str, ...]) -> Path:
