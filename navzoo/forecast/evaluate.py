@@ -239,7 +239,7 @@ def evaluate_forecasts(
     maps: str = "none",
     map_dir: str | Path | None = None,
     loo_models: str | Path | None = None,
-    done: Mapping[str, Mapping[str, Any]] | None = None,
+    resume_from: Mapping[str, Any] | None = None,
     on_scene: Callable[[dict[str, Any]], None] | None = None,
 ) -> dict[str, Any]:
     """Evaluate forecasters on a split; see the module doc for the protocol.
@@ -263,8 +263,9 @@ def evaluate_forecasts(
         loo_models: ``"loo"`` only: folder with one exported diffusion model per held-out scene
             (``<loo_models>/<scene>/``, checked by :func:`loo_model_dir`); the diffusion model is then
             evaluated by default.
-        done: Scene entries of an earlier, interrupted run with the same settings (its ``"scenes"``): a
-            scene found there with every requested model is not evaluated again.
+        resume_from: The result of an earlier, interrupted run (as ``on_scene`` received it). When its
+            ``"config"`` equals this run's, a scene found in it with every requested model is not
+            evaluated again; otherwise it is ignored.
         on_scene: Called after every scene with the result so far (the same keys, over the scenes done),
             e.g. to write it to a file, so a long evaluation loses nothing when it is stopped.
 
@@ -319,11 +320,12 @@ def evaluate_forecasts(
               "seed": seed, "average": "unweighted mean over scenes", "maps": maps,
               "map_dir": str(map_dir) if maps == "opentraj" else None,
               "loo_models": None if loo_models is None else str(loo_models)}
+    done = (resume_from.get("scenes") or {}) if resume_from and resume_from.get("config") == config else {}
     per_scene: dict[str, dict[str, Any]] = {}
     for held_out, train, test in folds:
         chosen = {s: p for s, p in test.items() if not scenes or s in scenes}
         for scene in list(chosen):
-            earlier = (done or {}).get(scene)
+            earlier = done.get(scene)
             if earlier is not None and all(name in earlier for name in names):
                 per_scene[scene] = dict(earlier)
                 del chosen[scene]
@@ -420,32 +422,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
 
 
-def _partial_scenes(out: Path, args: argparse.Namespace) -> dict[str, Any] | None:
-    """The scenes of an interrupted run in ``out`` (written with ``"partial": true``) if it ran with the same
-    settings, else None (the file is then overwritten). A finished file is never reused."""
-    import sys
-
+def _read_partial(out: Path) -> dict[str, Any] | None:
+    """The result of an interrupted run in ``out`` (written with ``"partial": true``), else None. A finished
+    file is never reused; :func:`evaluate_forecasts` keeps a partial one's scenes only if its settings match."""
     if not out.is_file():
         return None
     try:
         earlier = json.loads(out.read_text())
     except json.JSONDecodeError:
         return None
-    if not (isinstance(earlier, dict) and earlier.get("partial") and isinstance(earlier.get("scenes"), dict)):
-        return None
-    cfg = earlier.get("config") or {}
-    from navzoo.forecast.data import default_data_dir
-
-    data = str(Path(args.data) if args.data is not None else default_data_dir())
-    same = (cfg.get("data") == data and cfg.get("split") == args.split and cfg.get("samples") == args.samples and cfg.get("seed") == args.seed
-            and cfg.get("k_neighbors") == args.neighbors and cfg.get("radius") == args.radius
-            and cfg.get("max_windows") == (args.max_windows or None) and cfg.get("maps") == args.maps
-            and cfg.get("loo_models") == (None if args.loo_models is None else str(args.loo_models)))
-    if not same:
-        print(f"{out} holds an interrupted run with other settings: starting again", file=sys.stderr, flush=True)
-        return None
-    print(f"resuming from {out}: {sorted(earlier['scenes'])} done", file=sys.stderr, flush=True)
-    return earlier["scenes"]
+    ok = isinstance(earlier, dict) and earlier.get("partial") and isinstance(earlier.get("scenes"), dict)
+    return earlier if ok else None
 
 
 def _names(text: str | None) -> list[str] | None:
@@ -456,12 +443,12 @@ def run_cli(args: argparse.Namespace) -> int:
     """Run ``navzoo eval forecast`` from parsed arguments; prints the table or the JSON.
 
     With ``--out`` the result is written after every scene, with ``"partial": true`` until the end; a
-    rerun with the same settings keeps the scenes of such a partial file (:func:`_partial_scenes`).
+    rerun with the same settings keeps the scenes of such a partial file (:func:`_read_partial`).
     """
     import sys
 
     out = Path(args.out) if args.out else None
-    done = _partial_scenes(out, args) if out is not None else None
+    earlier = _read_partial(out) if out is not None else None
 
     def write(result: dict[str, Any], partial: bool) -> None:
         out.parent.mkdir(parents=True, exist_ok=True)  # type: ignore[union-attr]
@@ -473,9 +460,13 @@ def run_cli(args: argparse.Namespace) -> int:
         data_dir=args.data, split=args.split, samples=args.samples, models=_names(args.models),
         scenes=_names(args.scenes), max_windows=args.max_windows, seed=args.seed, k_neighbors=args.neighbors,
         radius=args.radius, progress=None if args.json else (lambda line: print(line, file=sys.stderr, flush=True)),
-        maps=args.maps, map_dir=args.map_dir, loo_models=args.loo_models, done=done,
+        maps=args.maps, map_dir=args.map_dir, loo_models=args.loo_models, resume_from=earlier,
         on_scene=None if out is None else (lambda r: write(r, True)),
     )
+    if earlier is not None:
+        kept = sorted(earlier["scenes"]) if earlier.get("config") == result["config"] else []
+        print(f"resuming from {out}: kept {kept}" if kept else
+              f"{out} held an interrupted run with other settings: evaluated again", file=sys.stderr, flush=True)
     text = json.dumps(result)
     if out is not None:
         write(result, False)
