@@ -56,6 +56,8 @@ def build_parser() -> argparse.ArgumentParser:
     tconv = trsub.add_parser("convert", help="convert ../shared/data/trajectories/eth_ucy into navzoo/assets/tracks")
     tconv.add_argument("--data", default=None, help="ETH/UCY folder with all_data/ (default: the shared data folder)")
     tconv.add_argument("--out", default=None, help="output folder (default: the package's assets/tracks)")
+    tconv.add_argument("--maps", default=None, help="OpenTraj folder with the scenes' wall lines (map.xml; default: "
+                       "the opentraj folder beside --data; 'none': convert without walls)")
 
     train = sub.add_parser("train", help="train a model of navzoo")
     tsub = train.add_subparsers(dest="train_command", metavar="MODEL")
@@ -167,7 +169,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 return 2
             from navzoo.agents.replay import convert_tracks
 
-            for path in convert_tracks(args.data, args.out):
+            for path in convert_tracks(args.data, args.out, args.maps):
                 print(path)
             return 0
         if args.command == "train":

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import numpy as np
@@ -191,11 +192,43 @@ def test_scene_contains_every_recorded_position_in_free_space(name):
     pts = tr.xy - rec.offset
     x0, y0, x1, y1 = scene.bounds
     assert np.all((pts[:, 0] > x0) & (pts[:, 0] < x1) & (pts[:, 1] > y0) & (pts[:, 1] < y1))
-    assert np.all(scene.clearance(pts) >= 0.9)  # 1 m of margin to the walls
-    grid = scene.occupancy(0.1).inflate(0.3)
-    assert np.all(grid.is_free(pts))
-    assert len(scene.obstacles) == 4  # an open scene: walls only
+    # The four walls around the box, then the real scene's walls (eth only).
+    assert [o.name for o in scene.obstacles[:4]] == ["south", "north", "west", "east"]
+    assert len(scene.obstacles) == 4 + len(rec.walls) and len(rec.walls) == (4 if name == "eth" else 0)
+    box = dataclasses.replace(scene, obstacles=scene.obstacles[:4])
+    assert np.all(box.clearance(pts) >= 0.9)  # 1 m of margin to the box
+    # A person's 0.3 m disc fits at every recorded position but a handful next to eth's walls.
+    free = scene.occupancy(0.1).inflate(0.3).is_free(pts)
+    assert free.mean() > 0.998 and (free.all() or name == "eth")
     assert abs(0.5 * (x0 + x1)) < 0.1 and abs(0.5 * (y0 + y1)) < 0.1  # data centred on the origin
+
+
+@pytest.mark.skipif("eth" not in AVAILABLE, reason="biwi_eth is not in the shared data")
+def test_eth_scene_has_the_real_walls_and_its_entrance():
+    from navzoo.forecast.scene_maps import opentraj_walls
+    from navzoo.world.planner import AStarPlanner
+
+    rec = load_recording("eth")
+    xml = opentraj_walls("biwi_eth", default_data_dir().parent / "opentraj")
+    if xml is None or not len(xml):
+        pytest.skip("the OpenTraj ETH map is not available")
+    np.testing.assert_allclose(rec.walls, xml - rec.offset, atol=1e-9)  # packaged = map.xml, scene frame
+    scene = get_scene("replay_eth")
+    front = 14.2 - rec.offset[0]  # the building front (file x = 14.2), its entrance at file y 4.9 .. 6.4
+    walkway, inside, behind_wall = (7.0, 6.0), (front + 0.7, 5.6), (front + 0.7, 2.0)
+    walkway, inside, behind_wall = (np.array(q) - rec.offset for q in (walkway, inside, behind_wall))
+    planner = AStarPlanner(scene.occupancy(0.1), agent_radius=0.3)
+    path = planner.plan(walkway, inside)
+    assert path is not None and planner.path_length(path) < 1.3 * np.linalg.norm(inside - walkway)  # straight in
+    around = planner.plan(walkway + np.array([0.0, -4.0]), behind_wall)
+    assert around is not None  # the building is reached through the entrance, not through the wall:
+    assert np.any(np.abs(path[:, 1] - inside[1]) < 0.8) and np.all(
+        np.abs(around[np.abs(around[:, 0] - front) < 0.15, 1] - inside[1]) < 0.75)
+    # The replay crowd runs in it.
+    env = NavEnv(scene="replay_eth", crowd_model="replay", replay_start=120.0, time_limit=1.0)
+    env.reset(seed=0)
+    env.step(_zeros(env))
+    env.close()
 
 
 def test_scene_is_chosen_from_the_recording_and_names_agree():
@@ -328,17 +361,39 @@ def test_packaged_tracks_equal_the_shared_text_files(tmp_path):
 
     files = discover(default_data_dir())["all"]
     assert files, "the shared ETH/UCY data is needed for this test"
+    from navzoo.forecast.scene_maps import opentraj_walls
+
+    maps = default_data_dir().parent / "opentraj"
     for stem, path in files.items():
-        packaged = replay._read_npz(replay.TRACKS_DIR / f"{stem}.npz")
+        packaged, walls = replay._read_npz(replay.TRACKS_DIR / f"{stem}.npz")
         text = read_tracks(path)
         assert packaged.dt == text.dt and packaged.frame_step == text.frame_step
         np.testing.assert_array_equal(packaged.frame, text.frame)
         np.testing.assert_array_equal(packaged.ped, text.ped)
         np.testing.assert_array_equal(packaged.xy, text.xy)
-    # The converter writes the same files again.
+        xml = opentraj_walls(stem, maps) if maps.is_dir() else None
+        if xml is not None:
+            np.testing.assert_array_equal(walls, xml)
+        assert walls.shape == ((4, 2, 2) if stem == "biwi_eth" else (0, 2, 2))
+    # The converter writes the same files again, and without the map's walls when asked.
     written = replay.convert_tracks(out_dir=tmp_path)
     assert sorted(p.name for p in written) == sorted(f"{s}.npz" for s in files)
+    if "biwi_eth" in files:
+        for src, n_walls in ((None, 4), ("none", 0)):
+            replay.convert_tracks(out_dir=tmp_path, map_dir=src)
+            assert replay._read_npz(tmp_path / "biwi_eth.npz")[1].shape == (n_walls, 2, 2)
+        with pytest.raises(FileNotFoundError, match="--maps none"):
+            replay.convert_tracks(out_dir=tmp_path, map_dir=tmp_path / "no_opentraj")
+    # A file of an older navzoo (no walls) still loads, as a recording without walls.
+    old = tmp_path / "old.npz"
+    with np.load(written[0], allow_pickle=False) as z:
+        np.savez(old, **{k: z[k] for k in z.files if k != "walls"})
+    assert replay._read_npz(old)[1].shape == (0, 2, 2)
     bad = tmp_path / "bad.npz"
     np.savez(bad, frame=np.zeros(3))
     with pytest.raises(ValueError, match="not a navzoo track file"):
+        replay._read_npz(bad)
+    np.savez(bad, **{k: z for k, z in np.load(written[0], allow_pickle=False).items() if k != "walls"},
+             walls=np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="walls: expected"):
         replay._read_npz(bad)

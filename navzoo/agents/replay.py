@@ -50,7 +50,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -127,6 +127,8 @@ class Recording:
         xy: P arrays (T_i, 2) of positions in scene coordinates, one per ``dt``.
         duration: time of the last sample of the recording (s).
         bbox: (xmin, ymin, xmax, ymax) of all positions, scene coordinates.
+        walls: (K, 2, 2) wall lines of the real scene (OpenTraj ``map.xml``; only ``eth`` has them), scene
+            coordinates; (0, 2, 2) for a recording without a map.
     """
 
     name: str
@@ -139,6 +141,7 @@ class Recording:
     xy: tuple[np.ndarray, ...]
     duration: float
     bbox: tuple[float, float, float, float]
+    walls: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
 
     def t1(self) -> np.ndarray:
         """(P,) time of each track's last sample."""
@@ -177,42 +180,67 @@ def _find_file(name: str, data_dir: Path | None) -> Path:
                      f"{where}; recordings available there: {', '.join(have) or 'none'}")
 
 
-def _read_npz(path: Path) -> Tracks:
-    """A packaged recording written by :func:`convert_tracks` (arrays only, no pickles)."""
+def _read_npz(path: Path) -> tuple[Tracks, np.ndarray]:
+    """A packaged recording written by :func:`convert_tracks` (arrays only, no pickles): its tracks and
+    its wall lines (K, 2, 2) in the file's frame (none in files written before walls were packaged)."""
     try:
         with np.load(path, allow_pickle=False) as z:
             if int(z["format_version"]) != TRACKS_FORMAT:
                 raise ValueError(f"format version {int(z['format_version'])}, expected {TRACKS_FORMAT}")
-            return Tracks(scene=str(z["scene"]), dt=float(z["dt"]), frame_step=int(z["frame_step"]),
-                          frame=z["frame"].astype(np.int64), ped=z["ped"].astype(np.int64),
-                          xy=z["xy"].astype(np.float64), path=path)
+            walls = z["walls"].astype(np.float64) if "walls" in z.files else np.zeros((0, 4))
+            if walls.ndim != 2 or walls.shape[1] != 4 or not np.all(np.isfinite(walls)):
+                raise ValueError(f"walls: expected finite (K, 4) segments, got shape {walls.shape}")
+            tracks = Tracks(scene=str(z["scene"]), dt=float(z["dt"]), frame_step=int(z["frame_step"]),
+                            frame=z["frame"].astype(np.int64), ped=z["ped"].astype(np.int64),
+                            xy=z["xy"].astype(np.float64), path=path)
+            return tracks, walls.reshape(-1, 2, 2)
     except (KeyError, ValueError, OSError) as exc:
         raise ValueError(f"{path}: not a navzoo track file ({exc}); rebuild the packaged tracks with "
                          "`navzoo tracks convert`") from None
 
 
-def convert_tracks(data_dir: str | Path | None = None, out_dir: str | Path | None = None) -> list[Path]:
+def convert_tracks(data_dir: str | Path | None = None, out_dir: str | Path | None = None,
+                   map_dir: str | Path | None = None) -> list[Path]:
     """Convert the ETH/UCY text files (``all_data/`` of ``data_dir``, default the shared data folder)
     into the packaged ``<stem>.npz`` files of ``out_dir`` (default :data:`TRACKS_DIR`): frame and
-    pedestrian ids, positions (float64, as in the files), the time step (biwi_eth 0.667 s) and the
-    source file's SHA-256. Returns the files written. ``navzoo tracks convert`` runs it."""
+    pedestrian ids, positions (float64, as in the files), the time step (biwi_eth 0.667 s), the
+    source file's SHA-256, and the scene's wall lines (``walls``, (K, 4): x1, y1, x2, y2 in the file's
+    frame) from the OpenTraj ``map.xml`` of ``map_dir`` (default: the ``opentraj`` folder beside
+    ``data_dir``; ``"none"``: no walls) where the scene has one (``biwi_eth``). Returns the files
+    written. ``navzoo tracks convert`` runs it.
+
+    Raises:
+        FileNotFoundError: No ETH/UCY files, or a scene with an OpenTraj map whose ``map.xml`` is missing
+            (pass ``map_dir="none"`` to convert without walls).
+    """
     import hashlib
 
     from navzoo.forecast.data import default_data_dir, discover, read_tracks
+    from navzoo.forecast.scene_maps import opentraj_walls
 
     root = Path(data_dir) if data_dir is not None else default_data_dir()
     files = discover(root)["all"]
     if not files:
         raise FileNotFoundError(f"no ETH/UCY files in {root / 'all_data'}")
+    no_maps = isinstance(map_dir, str) and map_dir.lower() == "none"
+    maps = None if no_maps else (Path(map_dir) if map_dir is not None else root.parent / "opentraj")
     out = Path(out_dir) if out_dir is not None else TRACKS_DIR
     out.mkdir(parents=True, exist_ok=True)
     written = []
     for stem, path in sorted(files.items()):
         tr = read_tracks(path)
+        walls = None
+        if maps is not None:
+            try:
+                walls = opentraj_walls(stem, maps)
+            except FileNotFoundError as exc:
+                raise FileNotFoundError(f"{exc}; pass the OpenTraj folder (--maps DIR) or convert without "
+                                        "walls (--maps none)") from None
+        walls = np.zeros((0, 4)) if walls is None else np.asarray(walls).reshape(-1, 4)
         target = out / f"{stem}.npz"
         np.savez_compressed(target, format_version=np.int64(TRACKS_FORMAT), scene=np.str_(tr.scene),
                             dt=np.float64(tr.dt), frame_step=np.int64(tr.frame_step), frame=tr.frame.astype(np.int32),
-                            ped=tr.ped.astype(np.int32), xy=tr.xy,
+                            ped=tr.ped.astype(np.int32), xy=tr.xy, walls=walls,
                             source_sha256=np.str_(hashlib.sha256(path.read_bytes()).hexdigest()))
         written.append(target)
     return written
@@ -221,9 +249,20 @@ def convert_tracks(data_dir: str | Path | None = None, out_dir: str | Path | Non
 @functools.cache
 def _load(name: str, data_dir: str | None) -> Recording:
     from navzoo.forecast.data import read_tracks
+    from navzoo.forecast.scene_maps import opentraj_walls
 
     path = _find_file(name, Path(data_dir) if data_dir else None)
-    tracks = _read_npz(path) if path.suffix == ".npz" else read_tracks(path)
+    if path.suffix == ".npz":
+        tracks, walls = _read_npz(path)
+    else:  # text files: the walls of the OpenTraj folder beside data_dir, if it is there
+        tracks, walls = read_tracks(path), None
+        maps = Path(data_dir).parent / "opentraj"
+        if maps.is_dir():
+            try:
+                walls = opentraj_walls(path.stem, maps)
+            except FileNotFoundError:
+                walls = None
+        walls = np.zeros((0, 2, 2)) if walls is None else np.asarray(walls)
     step = (tracks.frame - tracks.frame.min()) // tracks.frame_step
     lo, hi = tracks.xy.min(axis=0), tracks.xy.max(axis=0)
     offset = np.round(0.5 * (lo + hi), 1)
@@ -243,10 +282,12 @@ def _load(name: str, data_dir: str | None) -> Recording:
     for arr in xys:
         arr.setflags(write=False)
     blo, bhi = lo - offset, hi - offset
+    walls = np.asarray(walls, dtype=np.float64) - offset
+    walls.setflags(write=False)
     return Recording(name=name, stem=path.stem, path=path, dt=float(tracks.dt), offset=offset,
                      ped=np.array(peds, dtype=np.int64), t0=np.array(t0), xy=tuple(xys),
                      duration=float(step.max()) * tracks.dt,
-                     bbox=(float(blo[0]), float(blo[1]), float(bhi[0]), float(bhi[1])))
+                     bbox=(float(blo[0]), float(blo[1]), float(bhi[0]), float(bhi[1])), walls=walls)
 
 
 def load_recording(name: str, data_dir: str | Path | None = None) -> Recording:
@@ -267,10 +308,12 @@ def replay_scene(name: str) -> Scene:
 
     Free space covers the bounding box of every recorded position plus :data:`SCENE_MARGIN` (1 m)
     on each side, in the recording's coordinates shifted by ``Recording.offset`` (bounding box
-    centred on the origin); 0.2 m walls close it. No static obstacles: the ETH/UCY files carry none
-    (the OpenTraj obstacle maps use other world frames and are not used). Robot and pedestrian
-    tasks are sampled anywhere in the free space; ``default_humans`` is the median number of
-    people present at once; ``time_limit`` 60 s (or the recording's length if shorter).
+    centred on the origin); 0.2 m walls close it. Inside, the real scene's walls where the data has
+    them (``Recording.walls``: ``eth``'s walkway sides and building front with its entrance, from
+    OpenTraj's ``map.xml``, as 0.2 m walls centred on the lines); the UCY recordings have none (their
+    OpenTraj annotations use another world frame). Robot and pedestrian tasks are sampled anywhere in
+    the free space; ``default_humans`` is the median number of people present at once; ``time_limit``
+    60 s (or the recording's length if shorter).
     """
     return _replay_scene(canonical_recording(name))
 
@@ -288,7 +331,8 @@ def _replay_scene(name: str) -> Scene:
         WallObstacle((bx0, fy1 + h), (bx1, fy1 + h), thickness=w, name="north"),
         WallObstacle((fx0 - h, fy0), (fx0 - h, fy1), thickness=w, name="west"),
         WallObstacle((fx1 + h, fy0), (fx1 + h, fy1), thickness=w, name="east"),
-    )
+    ) + tuple(WallObstacle(tuple(a), tuple(b), thickness=w, name=f"map_{k}")
+              for k, (a, b) in enumerate(np.round(rec.walls, 3).tolist()))
     steps = np.arange(int(round(rec.duration / rec.dt)) + 1) * rec.dt
     t1 = rec.t1()
     counts = ((rec.t0[None, :] <= steps[:, None] + 1e-9) & (t1[None, :] >= steps[:, None] - 1e-9)).sum(axis=1)
@@ -300,8 +344,9 @@ def _replay_scene(name: str) -> Scene:
         default_humans=max(1, int(np.median(counts))),
         time_limit=float(min(60.0, max(rec.duration, 1.0))),
         description=(f"Open scene of the {rec.name} recording ({rec.stem}): {fx1 - fx0:.1f} x {fy1 - fy0:.1f} m of "
-                     f"free space around every recorded position, walls around it; coordinates = file - "
-                     f"{rec.offset.tolist()}."),
+                     f"free space around every recorded position, walls around it"
+                     + (f", {len(rec.walls)} walls of the real scene inside (OpenTraj map)" if len(rec.walls) else "")
+                     + f"; coordinates = file - {rec.offset.tolist()}."),
     )
     scene.validate_reachability()
     return scene

@@ -37,8 +37,8 @@ import numpy as np
 from navzoo.forecast.sim_data import MAP_EXTENT, map_heading
 from navzoo.world.occupancy import OccupancyGrid
 
-__all__ = ["OPENTRAJ_MAPS", "MAP_EXTENT", "MAP_CELLS", "default_map_dir", "opentraj_grid", "map_crops",
-           "attach_maps"]
+__all__ = ["OPENTRAJ_MAPS", "MAP_EXTENT", "MAP_CELLS", "default_map_dir", "opentraj_grid", "opentraj_walls",
+           "map_crops", "attach_maps"]
 
 #: eth_ucy scene -> OpenTraj folder holding ``map.png`` and ``H.txt`` in the same world frame.
 OPENTRAJ_MAPS: dict[str, str] = {"biwi_eth": "ETH/seq_eth"}
@@ -51,6 +51,51 @@ def default_map_dir() -> Path:
     from navzoo.forecast.data import default_data_dir
 
     return default_data_dir().parent / "opentraj"
+
+
+def opentraj_walls(scene: str, map_dir: str | Path | None = None) -> np.ndarray | None:
+    """The wall lines of ``scene``'s OpenTraj ``map.xml`` (K, 2, 2) in the world frame of the ``eth_ucy``
+    file (metres; each row a segment's two end points), or None if the scene has no OpenTraj map.
+
+    For ``biwi_eth`` these are the walkway's two side walls and the building front, broken by the
+    entrance: the lines that :func:`opentraj_grid` rasterises from ``map.png`` (both are checked against
+    each other in ``tests/forecast/test_scene_maps.py``). The ``thickness`` attribute of a line is a
+    drawing width in pixels, not metres, and is ignored.
+
+    Raises:
+        FileNotFoundError: If the scene has a map but its ``map.xml`` is missing.
+        ValueError: If ``map.xml`` is not XML, or a ``Line`` lacks a finite coordinate.
+    """
+    if scene not in OPENTRAJ_MAPS:
+        return None
+    folder = Path(map_dir) if map_dir is not None else default_map_dir()
+    path = folder / OPENTRAJ_MAPS[scene] / "map.xml"
+    if not path.is_file():
+        raise FileNotFoundError(f"OpenTraj map file {path} is missing")
+    return _opentraj_walls(str(path.resolve()))
+
+
+@lru_cache(maxsize=8)
+def _opentraj_walls(path: str) -> np.ndarray:
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as exc:
+        raise ValueError(f"{path}: not an XML file ({exc})") from None
+    rows = []
+    # Tags carry the OpenTraj namespace ({https://github.com/amiryanj/OpenTraj}Line); match the local name.
+    for k, el in enumerate(e for e in root.iter() if e.tag.rsplit("}", 1)[-1] == "Line"):
+        try:
+            row = [float(el.attrib[a]) for a in ("x1", "y1", "x2", "y2")]
+        except (KeyError, ValueError):
+            raise ValueError(f"{path}: Line {k} needs numeric x1, y1, x2, y2; got {dict(el.attrib)}") from None
+        if not np.all(np.isfinite(row)):
+            raise ValueError(f"{path}: Line {k} has a non-finite coordinate: {row}")
+        rows.append(row)
+    walls = np.array(rows, dtype=np.float64).reshape(-1, 2, 2)
+    walls.setflags(write=False)
+    return walls
 
 
 def opentraj_grid(scene: str, map_dir: str | Path | None = None, resolution: float = 0.05,

@@ -147,3 +147,24 @@ def test_diffusion_training_data_with_real_maps(eth_ucy: Path, tmp_path: Path) -
                  "--batch-size", "8", "--eval-every", "2", "--out", str(out)]) == 0
     meta = json.loads((out / "checkpoint/meta.json").read_text())
     assert meta["data"]["real_maps"] == "opentraj" and meta["data"]["real_map_windows"]["biwi_eth"] == int(eth.sum())
+
+
+def test_opentraj_walls_read_the_map_lines_and_reject_bad_files(tmp_path: Path) -> None:
+    assert M.opentraj_walls("crowds_zara01") is None  # no OpenTraj map in this frame
+    folder = tmp_path / M.OPENTRAJ_MAPS["biwi_eth"]
+    with pytest.raises(FileNotFoundError, match="map.xml"):
+        M.opentraj_walls("biwi_eth", tmp_path)
+    folder.mkdir(parents=True)
+    (folder / "map.xml").write_text('<?xml version="1.0"?><Trial xmlns="https://github.com/amiryanj/OpenTraj">'
+                                    '<obstacles><obstacle><TrialObstacle><Lines>'
+                                    '<Line x1="0" y1="1" x2="2.5" y2="-1" thickness="1" /></Lines>'
+                                    '</TrialObstacle></obstacle></obstacles></Trial>')
+    np.testing.assert_array_equal(M.opentraj_walls("biwi_eth", tmp_path), [[[0.0, 1.0], [2.5, -1.0]]])
+    other = tmp_path / "b"
+    (other / M.OPENTRAJ_MAPS["biwi_eth"]).mkdir(parents=True)
+    (other / M.OPENTRAJ_MAPS["biwi_eth"] / "map.xml").write_text('<Trial><Line x1="0" y1="nan" x2="1" y2="1"/></Trial>')
+    with pytest.raises(ValueError, match="non-finite"):
+        M.opentraj_walls("biwi_eth", other)
+    (other / M.OPENTRAJ_MAPS["biwi_eth"] / "map.xml").write_text('<Trial><Line x1="0" y1="1"/>')
+    with pytest.raises(ValueError, match="not an XML file"):
+        M.opentraj_walls("biwi_eth", other)
