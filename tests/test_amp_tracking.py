@@ -70,6 +70,44 @@ def test_reference_state_initialisation_puts_the_body_exactly_on_the_reference(l
     assert pos.max() < 1e-6 and rot.max() < 1e-5
 
 
+def test_a_free_body_with_the_reference_velocities_lands_on_the_next_frame(library):
+    """The clips' root and joint velocities mean what PyBullet means by them: without gravity, contacts
+    or motors, a body started in a clip's state with its velocities moves, in 1/30 s, to the clip's
+    next frame (errors here would be the tracking error's floor, not the policy's)."""
+    import pybullet as p
+
+    from navzoo.agents.amp.sim import CONTROL_JOINTS
+
+    n, t0, dt = 6, 0.5, 1.0 / 30.0
+    clips = np.arange(n) * 3
+    lift = np.stack([6.0 * np.arange(n), np.zeros(n), np.ones(n)], axis=1)  # in the air, 6 m apart
+    ref0 = library.state_at(clips, np.full(n, t0))
+    ref1 = library.state_at(clips, np.full(n, t0 + dt))
+    cid = nzsim.connect()
+    try:
+        bodies = PhysicsHumanoids(cid, n, physics_hz=120, control_hz=30)
+        p.setGravity(0, 0, 0, physicsClientId=cid)
+        bodies.set_state(_replace(ref0, root_pos=np.asarray(ref0.root_pos) + lift))
+        for body in bodies.ids:  # no joint torques at all (set_state leaves the PD targets for step())
+            for j in CONTROL_JOINTS:
+                if p.getJointInfo(body, j, physicsClientId=cid)[2] == p.JOINT_SPHERICAL:
+                    p.setJointMotorControlMultiDof(body, j, p.POSITION_CONTROL, targetPosition=[0, 0, 0, 1],
+                                                   positionGain=0, velocityGain=0, force=[0, 0, 0], physicsClientId=cid)
+                else:
+                    p.setJointMotorControl2(body, j, p.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+        for _ in range(4):
+            p.stepSimulation(physicsClientId=cid)
+        state = bodies.read_state()
+        state = {**state, "root_pos": state["root_pos"] - lift}
+        pos, rot = rigid_body_errors(state, ref1)
+        still_pos, still_rot = rigid_body_errors(ref0, ref1)  # how far the clip itself moved
+    finally:
+        nzsim.disconnect(cid)
+    assert still_rot.mean() > 0.04 and still_pos.mean() > 0.03  # the clips do move in 1/30 s
+    assert rot.max() < 0.05 and pos.max() < 0.01
+    assert rot.mean() < 0.3 * still_rot.mean()
+
+
 def test_short_tracking_run(short_run):
     r = short_run
     for key in ("mean_pos_error_m", "max_pos_error_m", "worst_pos_error_m", "mean_rot_error_rad",
@@ -85,9 +123,14 @@ def test_short_tracking_run(short_run):
         assert c["duration_s"] == pytest.approx(1.0) and c["clip_duration_s"] > 1.0
         assert 0.0 < c["tracked_s"] <= 1.0 + 1e-9
         assert c["mean_pos_error_m"] <= c["max_pos_error_m"]
+        # the clip's rotation error is the mean over its 15 bodies
+        assert c["mean_rot_error_rad"] == pytest.approx(np.mean(c["mean_rot_error_by_body_rad"]))
         assert c["failed"] == (c["max_pos_error_m"] > 0.5)
         if not c["failed"]:
             assert c["tracked_s"] == pytest.approx(1.0)
+    by_body = r["mean_rot_error_by_body_rad"]
+    assert list(by_body)[:3] == ["root", "chest", "neck"] and len(by_body) == 15
+    assert np.mean(list(by_body.values())) == pytest.approx(r["mean_rot_error_rad"])
     # The closed loop works: one second of walking from the reference state stays near the clip.
     assert r["mean_pos_error_m"] < 0.4
     json.dumps(r)  # JSON-serialisable

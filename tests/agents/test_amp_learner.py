@@ -357,6 +357,20 @@ def test_checkpoint_roundtrip_in_process_restores_everything(tmp_path: Path) -> 
     assert sa == sb and torch.equal(a._rollout.obs, b._rollout.obs)
 
 
+def test_a_resumed_fixed_action_std_takes_the_new_config_value(tmp_path: Path) -> None:
+    a = _resume_learner()
+    a.train(128, ckpt_dir=tmp_path)
+    assert torch.allclose(a.actor.log_std, torch.tensor(a.cfg.init_log_std)) and a.cfg.init_log_std != -3.5
+    b = AmpLearner(_toy(16, episode_steps=12), toy_amp_config(**{**_RESUME_CFG, "init_log_std": -3.5}))
+    with pytest.warns(UserWarning, match="init_log_std"):
+        b.load_checkpoint(latest_checkpoint(tmp_path))
+    assert torch.allclose(b.actor.log_std, torch.tensor(-3.5)) and not b.actor.log_std.requires_grad
+    for (k, va), vb in zip(a.actor.state_dict().items(), b.actor.state_dict().values(), strict=True):
+        assert k == "log_std" or torch.equal(va, vb), k  # the mean network is the checkpoint's
+    b.collect(8)  # and it samples with the new std
+    assert float(b.actor.log_std.exp().mean()) == pytest.approx(math.exp(-3.5))
+
+
 @pytest.mark.filterwarnings("ignore:Detected pickle protocol")
 def test_corrupted_or_foreign_checkpoints_are_rejected_naming_the_file(tmp_path: Path) -> None:
     learner = _resume_learner()

@@ -136,7 +136,9 @@ class AmpConfig:
         max_grad_norm: gradient-norm clip, per network.
         normalize_advantages: standardise advantages over the rollout.
         normalize_value: the critic predicts returns standardised by a running mean/std.
-        init_log_std: log of the action noise std in the [-1, 1] action box (-2.9 -> sigma 0.055).
+        init_log_std: log of the action noise std in the [-1, 1] action box (-2.9 -> sigma 0.055). With a
+            fixed std (``learn_std`` False) it is a hyper-parameter like the learning rates: a resumed
+            checkpoint takes this value (``navzoo train amp --init-log-std``).
         learn_std: learn the log-std (default: fixed, as public AMP).
         bounds_loss_coef, bounds_soft: penalty ``coef * sum(relu(|mu| - soft)^2)`` on the mean action.
         entropy_coef: entropy bonus (0: with a fixed std it would be constant anyway).
@@ -885,6 +887,9 @@ class AmpLearner:
             )
         try:
             self.actor.load_state_dict(tensors["actor"])
+            if not self.cfg.learn_std:  # a fixed exploration std is this learner's hyper-parameter
+                with torch.no_grad():
+                    self.actor.log_std.fill_(float(self.cfg.init_log_std))
             self.critic.load_state_dict(tensors["critic"])
             self.obs_norm.load_state_dict(tensors["obs_norm"])
             self.value_norm.load_state_dict(tensors["value_norm"])

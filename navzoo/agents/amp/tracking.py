@@ -82,7 +82,7 @@ from navzoo.agents.amp.features import (
 )
 from navzoo.agents.amp.path_env import PathTaskConfig
 from navzoo.agents.amp.sim import PhysicsHumanoids, actions_to_targets
-from navzoo.agents.motion_lib import DEFAULT_NAME, MotionLibrary, humanoid_fk
+from navzoo.agents.motion_lib import DEFAULT_NAME, LINK_NAMES, MotionLibrary, humanoid_fk
 from navzoo.agents.quat import quat_angle, quat_conj, quat_mul, quat_normalize
 from navzoo.agents.reference import ReferenceState
 
@@ -134,9 +134,13 @@ def body_errors(
     """Mean over bodies of the position error (m) and geodesic rotation error (rad) of link frames
     (..., 15, 3) / (..., 15, 4): two arrays of shape (...)."""
     pos_err = np.linalg.norm(np.asarray(pos_a) - np.asarray(pos_b), axis=-1).mean(axis=-1)
-    # 2 arccos |<q_a, q_b>|, computed as the angle of q_a^-1 q_b (accurate near zero).
-    rot_err = quat_angle(quat_mul(quat_conj(np.asarray(quat_a)), np.asarray(quat_b))).mean(axis=-1)
-    return pos_err, rot_err
+    return pos_err, body_rotation_errors(quat_a, quat_b).mean(axis=-1)
+
+
+def body_rotation_errors(quat_a: np.ndarray, quat_b: np.ndarray) -> np.ndarray:
+    """Geodesic rotation error (rad) of each link frame, (..., 15, 4) x2 -> (..., 15): 2 arccos |<q_a, q_b>|,
+    computed as the angle of q_a^-1 q_b (accurate near zero)."""
+    return quat_angle(quat_mul(quat_conj(np.asarray(quat_a)), np.asarray(quat_b)))
 
 
 def rigid_body_errors(state: StateLike, reference: StateLike) -> tuple[np.ndarray, np.ndarray]:
@@ -293,6 +297,7 @@ def _track_batch(
 
     pos_err = np.full((n, max_steps), np.nan)
     rot_err = np.full((n, max_steps), np.nan)
+    rot_body = np.full((n, max_steps, N_BODIES), np.nan)  # per-body geodesic errors
     fail_step = np.full(n, -1)
     fall_step = np.full(n, -1)
     tracked = np.zeros(n, dtype=int)
@@ -317,9 +322,11 @@ def _track_batch(
             state = bodies.read_state()
             active = (step <= n_steps) & (fail_step < 0 if stop_on_failure else True)
             sim_pos, sim_quat = rigid_bodies(state)
-            pe, re = body_errors(sim_pos, sim_quat, ref_pos[:, step], ref_quat[:, step])
+            pe = np.linalg.norm(sim_pos - ref_pos[:, step], axis=-1).mean(axis=-1)
+            rb = body_rotation_errors(sim_quat, ref_quat[:, step])
             pos_err[active, step - 1] = pe[active]
-            rot_err[active, step - 1] = re[active]
+            rot_err[active, step - 1] = rb[active].mean(axis=-1)
+            rot_body[active, step - 1] = rb[active]
             tracked[active] = step
             fallen = bodies.fallen()
             fall_step[active & fallen & (fall_step < 0)] = step
@@ -344,6 +351,7 @@ def _track_batch(
             "max_pos_error_m": float(np.max(pe)),
             "mean_rot_error_rad": float(np.mean(re)),
             "max_rot_error_rad": float(np.max(re)),
+            "mean_rot_error_by_body_rad": np.mean(rot_body[i, : tracked[i]], axis=0).tolist(),
             "failed": bool(fail_step[i] > 0),
             "fail_time_s": float(fail_step[i] * dt) if fail_step[i] > 0 else None,
             "fell": bool(fall_step[i] > 0),
@@ -451,6 +459,9 @@ def track_clips(
         "success_mean_pos_error_m": mean("mean_pos_error_m", ok),
         "success_max_pos_error_m": mean("max_pos_error_m", ok),
         "success_mean_rot_error_rad": mean("mean_rot_error_rad", ok),
+        # mean over clips of each body's mean rotation error (the mean of these is mean_rot_error_rad)
+        "mean_rot_error_by_body_rad": dict(zip(LINK_NAMES, np.mean([r["mean_rot_error_by_body_rad"] for r in per_clip],
+                                                                  axis=0).tolist(), strict=True)),
         "seconds_simulated": float(sum(r["tracked_s"] for r in per_clip)),
         "seconds_reference": float(sum(r["duration_s"] for r in per_clip)),
         "wall_s": wall,
@@ -516,8 +527,10 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(result))
     else:
         rows = result.pop("per_clip", None)
+        by_body = result.pop("mean_rot_error_by_body_rad")
         for key, value in result.items():
             print(f"{key:28s} {value:.4f}" if isinstance(value, float) else f"{key:28s} {value}")
+        print("mean_rot_error_by_body_rad   " + "  ".join(f"{k} {v:.3f}" for k, v in by_body.items()))
         for r in rows or ():
             status = "FAIL" if r["failed"] else "ok"
             print(f"  {r['name']:28s} {r['tracked_s']:5.2f}/{r['duration_s']:5.2f} s  pos {r['mean_pos_error_m']:.3f} "

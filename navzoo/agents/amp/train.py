@@ -76,6 +76,10 @@ class TrainArgs:
     disc_weight_decay: float = 1e-4
     # weight of the mirror-symmetry loss on the actor (AmpConfig.mirror_coef; 0 = off)
     mirror_coef: float = 0.0
+    # log of the fixed action-noise std (AmpConfig.init_log_std; a resumed checkpoint takes the value given here).
+    # The position motors follow a new target within a physics substep, so this noise shows up as joint-velocity
+    # jitter that the discriminator reads (docs/pedestrians.md, "What the discriminator reads").
+    init_log_std: float = -2.9
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -113,7 +117,8 @@ def run(args: TrainArgs) -> dict[str, Any]:
                        rollout_steps=args.rollout_steps, minibatch_size=args.minibatch_size,
                        ckpt_replay_rows=args.ckpt_replay_rows, disc_lr=args.disc_lr,
                        disc_grad_penalty=args.disc_grad_penalty, disc_logit_reg=args.disc_logit_reg,
-                       disc_weight_decay=args.disc_weight_decay, mirror_coef=args.mirror_coef)
+                       disc_weight_decay=args.disc_weight_decay, mirror_coef=args.mirror_coef,
+                       init_log_std=args.init_log_std)
     device = args.device if args.device != "cuda" or torch.cuda.is_available() else "cpu"
     (out / "train_args.json").write_text(json.dumps({**dataclasses.asdict(args), "task": dataclasses.asdict(task),
                                                      "learner": config.to_dict()}, indent=2, default=str))
