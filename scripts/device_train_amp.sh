@@ -9,6 +9,14 @@
 # the log. Copy those files back into training/amp to continue in a later session.
 # RESET_DISC=1: resume with a fresh discriminator (needed once when the discriminator inputs changed meaning,
 # e.g. from checkpoint 3315 to the finite-difference / grounded inputs); TRAIN_ARGS: more train.py flags.
+#
+# Checkpoint selection (SNAPSHOT_EVERY=N, a multiple of 10): the run also exports its policy every N iterations
+# and at the start, keeps all its checkpoints, and afterwards runs the short following protocol
+# (scripts/amp_select_snapshots.py stage 1: 60 s per scene, seed 2, steering trim TRIM, default 0.025 rad) on
+# every snapshot for at most SELECT_S seconds (default 200). The checkpoint returned is then the one of the
+# best snapshot of the short protocol, not the last; small.tgz holds latest.json, selection.json, short.jsonl
+# and the selection log. Run the full protocol on it (and the baseline) in a second call.
+#   device run:  SNAPSHOT_EVERY=40 STAGE=3 OBSTACLES=1 TRAIN_S=380 LIMIT_S=340 TRAIN_ARGS="..." bash scripts/device_train_amp.sh
 set -u
 python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/*.whl 2>&1 | grep -v "already exists" | tail -2
 export PYTHONPATH=/tmp/site:$PWD
@@ -24,16 +32,41 @@ if [ -f "$RESUME_DIR/name" ]; then
   [ -f "$RESUME_DIR/metrics.jsonl.gz" ] && gunzip -c "$RESUME_DIR/metrics.jsonl.gz" > /tmp/amp/metrics.jsonl
   echo "resuming from $name"
 fi
-timeout "${TRAIN_S:-500}" python3 -m navzoo.agents.amp.train --out /tmp/amp --workers 15 --envs-per-worker 16 \
-  --device cuda --hidden 1024,512 --minibatch-size 1920 --time-limit-s "${LIMIT_S:-455}" --total-steps 500000000 \
-  --ckpt-every 10 --ckpt-replay-rows 8000 --stage "${STAGE:-1}" --obstacles "${OBSTACLES:-0}" \
-  --reset-disc "${RESET_DISC:-0}" ${TRAIN_ARGS:-} --json > "$OUT/train.log" 2>&1
+SNAP=${SNAPSHOT_EVERY:-0}
+SNAP_ARGS=""
+[ "$SNAP" -gt 0 ] && SNAP_ARGS="--snapshot-every $SNAP --keep-checkpoints 1000"
+timeout "${TRAIN_S:-500}" python3 -m navzoo.agents.amp.train --out /tmp/amp --workers "${WORKERS:-15}" --envs-per-worker 16 \
+  --device cuda --hidden 1024,512 --minibatch-size "${MINIBATCH:-1920}" --time-limit-s "${LIMIT_S:-455}" \
+  --total-steps 500000000 --ckpt-every 10 --ckpt-replay-rows 8000 --stage "${STAGE:-1}" --obstacles "${OBSTACLES:-0}" \
+  --reset-disc "${RESET_DISC:-0}" $SNAP_ARGS ${TRAIN_ARGS:-} --json > "$OUT/train.log" 2>&1
 echo "train rc=$?"
 tail -5 "$OUT/train.log"
 gzip -c /tmp/amp/metrics.jsonl > "$OUT/metrics.jsonl.gz" 2>/dev/null
 name=$(python3 -c "import json;print(json.load(open('/tmp/amp/checkpoints/latest.json'))['checkpoint'])")
+if [ "$SNAP" -gt 0 ]; then
+  timeout "${SELECT_S:-200}" python3 scripts/amp_select_snapshots.py --snapshots /tmp/amp/snapshots --trim "${TRIM:-0.025}" \
+    --full-seeds '' --workers "${SELECT_WORKERS:-16}" --out /tmp/amp/selection ${SELECT_ARGS:-} > /tmp/amp/select.log 2>&1
+  echo "select rc=$?"; tail -20 /tmp/amp/select.log
+  # the best snapshot of the short protocol (rows so far, if the time ran out) -> its checkpoint
+  best=$(python3 -c "
+import json, sys
+sys.path.insert(0, 'scripts')
+from amp_select_snapshots import success_by_config
+s = success_by_config(__import__('pathlib').Path('/tmp/amp/selection/short.jsonl'))
+print(max(s, key=lambda n: s[n]['success']) if s else '')")
+  if [ -n "$best" ] && [ -d "/tmp/amp/checkpoints/ckpt_$(printf %08d "${best#it}")" ]; then
+    name="ckpt_$(printf %08d "${best#it}")"
+    echo "{\"checkpoint\": \"$name\"}" > /tmp/amp/checkpoints/latest.json
+    echo "returning $name, the best snapshot of the short protocol"
+  else
+    echo "returning the last checkpoint $name: the best snapshot (${best:-none}) has no checkpoint"
+  fi
+  (cd /tmp/amp && cp checkpoints/latest.json . && tar czf "$OUT/small.tgz" latest.json select.log selection)
+else
+  cp /tmp/amp/checkpoints/latest.json "$OUT/"
+fi
 echo "$name" > "$OUT/name"
-cp /tmp/amp/checkpoints/latest.json /tmp/amp/checkpoints/$name/meta.json "$OUT/"
+cp /tmp/amp/checkpoints/$name/meta.json "$OUT/"
 split -b 15m /tmp/amp/checkpoints/$name/state.pt "$OUT/state.pt.part-"
 ls -la "$OUT"
 n=$(find "$OUT" -type f | wc -l)

@@ -371,6 +371,14 @@ def test_a_resumed_fixed_action_std_takes_the_new_config_value(tmp_path: Path) -
     assert float(b.actor.log_std.exp().mean()) == pytest.approx(math.exp(-3.5))
 
 
+def test_policy_snapshots_need_a_folder_and_a_non_negative_period() -> None:
+    learner = _resume_learner()
+    with pytest.raises(ValueError, match="snapshot_every"):
+        learner.train(128, snapshot_every=5)
+    with pytest.raises(ValueError, match="snapshot_every"):
+        learner.train(128, snapshot_dir="x", snapshot_every=-1)
+
+
 @pytest.mark.filterwarnings("ignore:Detected pickle protocol")
 def test_corrupted_or_foreign_checkpoints_are_rejected_naming_the_file(tmp_path: Path) -> None:
     learner = _resume_learner()

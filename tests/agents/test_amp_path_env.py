@@ -82,11 +82,19 @@ def test_train_entry_point_checkpoints_and_resumes(tmp_path):
     assert first.returncode == 0, first.stderr[-2000:]
     r1 = json.loads(first.stdout.strip().splitlines()[-1])
     assert r1["global_step"] >= 64 and r1["resumed_from"] is None
-    second = subprocess.run(cmd + ["--total-steps", "128"], capture_output=True, text=True, timeout=300)
+    second = subprocess.run(cmd + ["--total-steps", "128", "--snapshot-every", "2", "--keep-checkpoints", "5"],
+                            capture_output=True, text=True, timeout=300)
     assert second.returncode == 0, second.stderr[-2000:]
     r2 = json.loads(second.stdout.strip().splitlines()[-1])
     assert r2["resumed_from"] is not None and r2["global_step"] >= 128
     assert (tmp_path / "policy" / "policy.pt").is_file() and (tmp_path / "metrics.jsonl").is_file()
+    # Policy snapshots: the branch point (iteration 2) and every 2nd iteration after it; all checkpoints kept.
+    assert r1["iteration"] == 2 and r2["iteration"] == 4
+    assert sorted(p.name for p in (tmp_path / "snapshots").iterdir()) == ["policy_00000002", "policy_00000004"]
+    assert len(list((tmp_path / "checkpoints").glob("ckpt_*"))) == 4
+    final = (tmp_path / "policy" / "policy.pt").read_bytes()
+    assert (tmp_path / "snapshots" / "policy_00000004" / "policy.pt").read_bytes() == final
+    assert (tmp_path / "snapshots" / "policy_00000002" / "policy.pt").read_bytes() != final
 
 
 def test_shipped_policy_loads_and_walks_a_path_briefly():

@@ -693,6 +693,8 @@ class AmpLearner:
         verbose: bool = False,
         time_limit_s: float | None = None,
         reset_disc: bool = False,
+        snapshot_dir: str | Path | None = None,
+        snapshot_every: int = 0,
     ) -> dict[str, Any]:
         """Collect and update until ``global_step >= total_steps`` (or ``time_limit_s`` of wall time).
 
@@ -702,9 +704,15 @@ class AmpLearner:
         ``interrupted=True``; a second Ctrl-C, or a ``KeyboardInterrupt`` raised inside the loop,
         checkpoints at once (unless this iteration is already saved) and re-raises. ``reset_disc``: the
         resumed checkpoint's discriminator is replaced by a fresh one (see :meth:`load_checkpoint`).
+        ``snapshot_every`` > 0 (with ``snapshot_dir``): also export the deterministic policy
+        (:meth:`export_policy`) to ``<snapshot_dir>/policy_<iteration>`` every that many iterations and at
+        the start, so that a run's policies can be compared on the following protocol afterwards
+        (``scripts/amp_select_snapshots.py``); the checkpoints themselves rotate.
         """
         if ckpt_every <= 0:
             raise ValueError(f"ckpt_every must be positive, got {ckpt_every}")
+        if snapshot_every < 0 or (snapshot_every and snapshot_dir is None):
+            raise ValueError(f"snapshot_every must be >= 0 and needs a snapshot_dir, got {snapshot_every}, {snapshot_dir}")
         resumed_from = None
         if ckpt_dir is not None and resume:
             latest = ckpt.latest_checkpoint(ckpt_dir)
@@ -727,7 +735,16 @@ class AmpLearner:
 
             previous_handler = signal.signal(signal.SIGINT, on_sigint)
         t_start = time.perf_counter()
+
+        def snapshot() -> None:
+            if snapshot_every and (self.iteration % snapshot_every == 0 or self.iteration == start_it):
+                path = Path(snapshot_dir) / f"policy_{self.iteration:08d}"
+                if not (path / "config.json").is_file():
+                    self.export_policy(path)
+
+        start_it = self.iteration
         try:
+            snapshot()
             while self.global_step < total_steps and not stop.is_set():
                 if time_limit_s is not None and time.perf_counter() - t_start >= time_limit_s:
                     break
@@ -755,6 +772,7 @@ class AmpLearner:
                 if ckpt_dir is not None and self.iteration % ckpt_every == 0:
                     last_path = self.save_checkpoint(ckpt_dir)
                     saved_at = self.iteration
+                snapshot()
             if ckpt_dir is not None and saved_at != self.iteration:
                 last_path = self.save_checkpoint(ckpt_dir)
         except KeyboardInterrupt:

@@ -80,6 +80,12 @@ class TrainArgs:
     # The position motors follow a new target within a physics substep, so this noise shows up as joint-velocity
     # jitter that the discriminator reads (docs/pedestrians.md, "What the discriminator reads").
     init_log_std: float = -2.9
+    # > 0: export the deterministic policy to <out>/snapshots/policy_<iteration> every that many iterations and
+    # at the start, for checkpoint selection on the following protocol (scripts/amp_select_snapshots.py)
+    snapshot_every: int = 0
+    # training checkpoints kept in <out>/checkpoints (AmpConfig.keep_checkpoints); keep more to resume from a
+    # snapshot's iteration (with --ckpt-every dividing --snapshot-every)
+    keep_checkpoints: int = 3
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -118,7 +124,7 @@ def run(args: TrainArgs) -> dict[str, Any]:
                        ckpt_replay_rows=args.ckpt_replay_rows, disc_lr=args.disc_lr,
                        disc_grad_penalty=args.disc_grad_penalty, disc_logit_reg=args.disc_logit_reg,
                        disc_weight_decay=args.disc_weight_decay, mirror_coef=args.mirror_coef,
-                       init_log_std=args.init_log_std)
+                       init_log_std=args.init_log_std, keep_checkpoints=args.keep_checkpoints)
     device = args.device if args.device != "cuda" or torch.cuda.is_available() else "cpu"
     (out / "train_args.json").write_text(json.dumps({**dataclasses.asdict(args), "task": dataclasses.asdict(task),
                                                      "learner": config.to_dict()}, indent=2, default=str))
@@ -126,7 +132,8 @@ def run(args: TrainArgs) -> dict[str, Any]:
     t0 = time.time()
     try:
         result = learner.train(args.total_steps, log_dir=out, ckpt_dir=out / "checkpoints", ckpt_every=args.ckpt_every,
-                               verbose=True, time_limit_s=args.time_limit_s, reset_disc=bool(args.reset_disc))
+                               verbose=True, time_limit_s=args.time_limit_s, reset_disc=bool(args.reset_disc),
+                               snapshot_dir=out / "snapshots", snapshot_every=args.snapshot_every)
     finally:
         env.close()
     result = {**result, "wall_s": time.time() - t0, "out": str(out)}
