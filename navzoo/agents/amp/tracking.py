@@ -129,18 +129,14 @@ def rigid_bodies(state: StateLike) -> tuple[np.ndarray, np.ndarray]:
 
 
 def body_errors(
-    pos_a: np.ndarray, quat_a: np.ndarray, pos_b: np.ndarray, quat_b: np.ndarray
+    pos_a: np.ndarray, quat_a: np.ndarray, pos_b: np.ndarray, quat_b: np.ndarray, per_body: bool = False
 ) -> tuple[np.ndarray, np.ndarray]:
     """Mean over bodies of the position error (m) and geodesic rotation error (rad) of link frames
-    (..., 15, 3) / (..., 15, 4): two arrays of shape (...)."""
-    pos_err = np.linalg.norm(np.asarray(pos_a) - np.asarray(pos_b), axis=-1).mean(axis=-1)
-    return pos_err, body_rotation_errors(quat_a, quat_b).mean(axis=-1)
-
-
-def body_rotation_errors(quat_a: np.ndarray, quat_b: np.ndarray) -> np.ndarray:
-    """Geodesic rotation error (rad) of each link frame, (..., 15, 4) x2 -> (..., 15): 2 arccos |<q_a, q_b>|,
-    computed as the angle of q_a^-1 q_b (accurate near zero)."""
-    return quat_angle(quat_mul(quat_conj(np.asarray(quat_a)), np.asarray(quat_b)))
+    (..., 15, 3) / (..., 15, 4): two arrays of shape (...), or with ``per_body`` of shape (..., 15)."""
+    pos_err = np.linalg.norm(np.asarray(pos_a) - np.asarray(pos_b), axis=-1)
+    # 2 arccos |<q_a, q_b>|, computed as the angle of q_a^-1 q_b (accurate near zero).
+    rot_err = quat_angle(quat_mul(quat_conj(np.asarray(quat_a)), np.asarray(quat_b)))
+    return (pos_err, rot_err) if per_body else (pos_err.mean(axis=-1), rot_err.mean(axis=-1))
 
 
 def rigid_body_errors(state: StateLike, reference: StateLike) -> tuple[np.ndarray, np.ndarray]:
@@ -322,8 +318,8 @@ def _track_batch(
             state = bodies.read_state()
             active = (step <= n_steps) & (fail_step < 0 if stop_on_failure else True)
             sim_pos, sim_quat = rigid_bodies(state)
-            pe = np.linalg.norm(sim_pos - ref_pos[:, step], axis=-1).mean(axis=-1)
-            rb = body_rotation_errors(sim_quat, ref_quat[:, step])
+            pb, rb = body_errors(sim_pos, sim_quat, ref_pos[:, step], ref_quat[:, step], per_body=True)
+            pe = pb.mean(axis=-1)
             pos_err[active, step - 1] = pe[active]
             rot_err[active, step - 1] = rb[active].mean(axis=-1)
             rot_body[active, step - 1] = rb[active]
