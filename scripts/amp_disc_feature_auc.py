@@ -56,6 +56,7 @@ from navzoo.agents.amp.features import (
     SPH,
     load_humanoid_model,
 )
+from navzoo.agents.amp.networks import style_reward
 from navzoo.agents.amp.path_env import AmpPathEnv, PathTaskConfig
 from navzoo.agents.amp.train import grounded_locomotion_reference
 
@@ -212,7 +213,7 @@ def policy_matches_checkpoint(policy: Any, tensors: dict[str, Any]) -> bool:
 
 def disc_summary(logit_pol: np.ndarray, logit_ref: np.ndarray) -> dict[str, float]:
     """Accuracy by sign, AUC and mean logits / style reward of the discriminator (reference = positive)."""
-    style = np.minimum(np.logaddexp(0.0, logit_pol), -np.log(1e-4))  # learner's style reward
+    style = style_reward(torch.as_tensor(logit_pol)).numpy()  # the learner's style reward
     return {
         "acc_policy": float(np.mean(logit_pol < 0)),
         "acc_reference": float(np.mean(logit_ref > 0)),

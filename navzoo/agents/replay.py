@@ -255,14 +255,12 @@ def _load(name: str, data_dir: str | None) -> Recording:
     if path.suffix == ".npz":
         tracks, walls = _read_npz(path)
     else:  # text files: the walls of the OpenTraj folder beside data_dir, if it is there
-        tracks, walls = read_tracks(path), None
-        maps = Path(data_dir).parent / "opentraj"
-        if maps.is_dir():
-            try:
-                walls = opentraj_walls(path.stem, maps)
-            except FileNotFoundError:
-                walls = None
-        walls = np.zeros((0, 2, 2)) if walls is None else np.asarray(walls)
+        tracks = read_tracks(path)
+        try:
+            walls = opentraj_walls(path.stem, Path(data_dir).parent / "opentraj")
+        except FileNotFoundError:
+            walls = None
+        walls = np.zeros((0, 2, 2)) if walls is None else walls
     step = (tracks.frame - tracks.frame.min()) // tracks.frame_step
     lo, hi = tracks.xy.min(axis=0), tracks.xy.max(axis=0)
     offset = np.round(0.5 * (lo + hi), 1)

@@ -735,6 +735,7 @@ class AmpLearner:
 
             previous_handler = signal.signal(signal.SIGINT, on_sigint)
         t_start = time.perf_counter()
+        start_it = self.iteration
 
         def snapshot() -> None:
             if snapshot_every and (self.iteration % snapshot_every == 0 or self.iteration == start_it):
@@ -742,7 +743,6 @@ class AmpLearner:
                 if not (path / "config.json").is_file():
                     self.export_policy(path)
 
-        start_it = self.iteration
         try:
             snapshot()
             while self.global_step < total_steps and not stop.is_set():
