@@ -587,3 +587,41 @@ def test_mirror_loss_refuses_other_layouts() -> None:
         AmpLearner(RandomAmpVecEnv(num_envs=4, act_dim=6), _small(mirror_coef=1.0))
     with pytest.raises(ValueError, match="mirror_coef"):
         AmpConfig(mirror_coef=-1.0)
+
+
+def test_a_resumed_run_takes_the_new_task_weight_and_actor_lr(tmp_path: Path) -> None:
+    a = _resume_learner()
+    a.train(128, ckpt_dir=tmp_path)
+    b = AmpLearner(_toy(16, episode_steps=12),
+                   toy_amp_config(**{**_RESUME_CFG, "task_weight": 1.0, "actor_lr": 1e-5}))
+    with pytest.warns(UserWarning, match=r"actor_lr.*task_weight"):
+        b.load_checkpoint(latest_checkpoint(tmp_path))
+    assert all(g["lr"] == 1e-5 for g in b.actor_opt.param_groups)
+    assert b.cfg.task_weight == 1.0 and a.cfg.task_weight != 1.0
+
+
+def test_train_flags_reach_the_learner_config(tmp_path: Path, monkeypatch) -> None:
+    import argparse
+
+    import navzoo.agents.amp.learner as learner_module
+    from navzoo.agents.amp.train import TrainArgs, add_arguments, run
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    ns = vars(parser.parse_args(["--task-weight", "1.0", "--actor-lr", "2e-5", "--envs-per-worker", "1",
+                                 "--out", str(tmp_path)]))
+    ns.pop("json")
+    seen = {}
+
+    class Built(Exception):
+        pass
+
+    def capture(env, config, device="cpu"):
+        seen["config"] = config
+        raise Built
+
+    monkeypatch.setattr(learner_module, "AmpLearner", capture)
+    with pytest.raises(Built):
+        run(TrainArgs(**ns))
+    assert (seen["config"].task_weight, seen["config"].actor_lr) == (1.0, 2e-5)
+    assert (TrainArgs().task_weight, TrainArgs().actor_lr) == (AmpConfig().task_weight, AmpConfig().actor_lr)

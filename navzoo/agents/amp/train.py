@@ -76,6 +76,10 @@ class TrainArgs:
     disc_weight_decay: float = 1e-4
     # weight of the mirror-symmetry loss on the actor (AmpConfig.mirror_coef; 0 = off)
     mirror_coef: float = 0.0
+    # weight of the task reward next to the style reward (AmpConfig.task_weight; the paper's r = r_amp + 0.5 r_task)
+    # and the actor's learning rate (AmpConfig.actor_lr); a resumed checkpoint takes the values given here
+    task_weight: float = 0.5
+    actor_lr: float = 5e-5
     # log of the fixed action-noise std (AmpConfig.init_log_std; a resumed checkpoint takes the value given here).
     # The position motors follow a new target within a physics substep, so this noise shows up as joint-velocity
     # jitter that the discriminator reads (docs/pedestrians.md, "What the discriminator reads").
@@ -124,13 +128,14 @@ def run(args: TrainArgs) -> dict[str, Any]:
                        ckpt_replay_rows=args.ckpt_replay_rows, disc_lr=args.disc_lr,
                        disc_grad_penalty=args.disc_grad_penalty, disc_logit_reg=args.disc_logit_reg,
                        disc_weight_decay=args.disc_weight_decay, mirror_coef=args.mirror_coef,
-                       init_log_std=args.init_log_std, keep_checkpoints=args.keep_checkpoints)
+                       init_log_std=args.init_log_std, keep_checkpoints=args.keep_checkpoints,
+                       task_weight=args.task_weight, actor_lr=args.actor_lr)
     device = args.device if args.device != "cuda" or torch.cuda.is_available() else "cpu"
     (out / "train_args.json").write_text(json.dumps({**dataclasses.asdict(args), "task": dataclasses.asdict(task),
                                                      "learner": config.to_dict()}, indent=2, default=str))
-    learner = AmpLearner(env, config, device=device)
     t0 = time.time()
     try:
+        learner = AmpLearner(env, config, device=device)
         result = learner.train(args.total_steps, log_dir=out, ckpt_dir=out / "checkpoints", ckpt_every=args.ckpt_every,
                                verbose=True, time_limit_s=args.time_limit_s, reset_disc=bool(args.reset_disc),
                                snapshot_dir=out / "snapshots", snapshot_every=args.snapshot_every)
