@@ -17,14 +17,20 @@
 # best snapshot of the short protocol, not the last; small.tgz holds latest.json, selection.json, short.jsonl
 # and the selection log. Run the full protocol on it (and the baseline) in a second call.
 #   device run:  SNAPSHOT_EVERY=40 STAGE=3 OBSTACLES=1 TRAIN_S=380 LIMIT_S=340 TRAIN_ARGS="..." bash scripts/device_train_amp.sh
+#
+# TRAINER=scenes: train in navzoo scenes instead of the patch env (python -m navzoo.rl.amp_joint train, from the
+# shipped training checkpoint in training/amp): WORKERS processes, each with N_ENVS copies x N_HUMANS pedestrians
+# of one scene of SCENES (comma-separated library scenes, one per worker in turn), no robots; STAGE, OBSTACLES,
+# RESET_DISC and RESUME_DIR do not apply. TRAIN_ARGS go to amp_joint train (e.g. --actor-lr, --disc-lr).
 set -u
 python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/*.whl 2>&1 | grep -v "already exists" | tail -2
 export PYTHONPATH=/tmp/site:$PWD
 nproc; nvidia-smi --query-gpu=name,memory.total --format=csv,noheader
 python3 -c "import navzoo, torch, pybullet; print('navzoo ok, cuda', torch.cuda.is_available(), torch.__version__)"
 RESUME_DIR=${RESUME_DIR:-training/amp}
+TRAINER=${TRAINER:-path}
 mkdir -p /tmp/amp/checkpoints
-if [ -f "$RESUME_DIR/name" ]; then
+if [ "$TRAINER" = path ] && [ -f "$RESUME_DIR/name" ]; then
   name=$(cat "$RESUME_DIR/name")
   mkdir -p /tmp/amp/checkpoints/$name
   cat "$RESUME_DIR"/state.pt.part-* > /tmp/amp/checkpoints/$name/state.pt
@@ -35,10 +41,19 @@ fi
 SNAP=${SNAPSHOT_EVERY:-0}
 SNAP_ARGS=""
 [ "$SNAP" -gt 0 ] && SNAP_ARGS="--snapshot-every $SNAP --keep-checkpoints 1000"
-timeout "${TRAIN_S:-500}" python3 -m navzoo.agents.amp.train --out /tmp/amp --workers "${WORKERS:-15}" --envs-per-worker 16 \
-  --device cuda --hidden 1024,512 --minibatch-size "${MINIBATCH:-1920}" --time-limit-s "${LIMIT_S:-455}" \
-  --total-steps 500000000 --ckpt-every 10 --ckpt-replay-rows 8000 --stage "${STAGE:-1}" --obstacles "${OBSTACLES:-0}" \
-  --reset-disc "${RESET_DISC:-0}" $SNAP_ARGS ${TRAIN_ARGS:-} --json > "$OUT/train.log" 2>&1
+if [ "$TRAINER" = scenes ]; then
+  timeout "${TRAIN_S:-500}" python3 -m navzoo.rl.amp_joint train --out /tmp/amp --workers "${WORKERS:-16}" \
+    --n-envs "${N_ENVS:-2}" --n-humans "${N_HUMANS:-6}" --n-robots 0 --scenes "${SCENES:?set SCENES}" --device cuda \
+    --minibatch-size "${MINIBATCH:-1536}" --time-limit-s "${LIMIT_S:-455}" --steps 500000000 --ckpt-every 10 \
+    $SNAP_ARGS ${TRAIN_ARGS:-} > "$OUT/train.log" 2>&1
+elif [ "$TRAINER" = path ]; then
+  timeout "${TRAIN_S:-500}" python3 -m navzoo.agents.amp.train --out /tmp/amp --workers "${WORKERS:-15}" --envs-per-worker 16 \
+    --device cuda --hidden 1024,512 --minibatch-size "${MINIBATCH:-1920}" --time-limit-s "${LIMIT_S:-455}" \
+    --total-steps 500000000 --ckpt-every 10 --ckpt-replay-rows 8000 --stage "${STAGE:-1}" --obstacles "${OBSTACLES:-0}" \
+    --reset-disc "${RESET_DISC:-0}" $SNAP_ARGS ${TRAIN_ARGS:-} --json > "$OUT/train.log" 2>&1
+else
+  echo "TRAINER must be path or scenes, got $TRAINER" > "$OUT/train.log"; false
+fi
 echo "train rc=$?"
 tail -5 "$OUT/train.log"
 gzip -c /tmp/amp/metrics.jsonl > "$OUT/metrics.jsonl.gz" 2>/dev/null

@@ -45,7 +45,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["AmpJointArgs", "NavAmpVecEnv", "evaluate", "main", "shipped_training_checkpoint", "train"]
+__all__ = ["AmpJointArgs", "NavAmpVecEnv", "SubprocNavAmpVecEnv", "evaluate", "main", "shipped_training_checkpoint",
+           "stats_from_counters", "train"]
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 SHIPPED_STATE = REPO_ROOT / "training" / "amp"  # the committed training checkpoint of the shipped policy
@@ -55,6 +56,27 @@ def _pose(state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """A copy of the pose fields of a ``read_state()`` dict: what the next frame's finite-difference
     velocities (:func:`navzoo.agents.amp.features.finite_difference_velocities`) start from."""
     return {key: np.array(state[key], copy=True) for key in ("root_pos", "root_quat", "sph", "rev")}
+
+
+def stats_from_counters(counters: Sequence[dict[str, Any]], dt: float) -> dict[str, float]:
+    """:meth:`NavAmpVecEnv.stats` of the summed ``counters`` of one or more envs (e.g. of every worker)."""
+    s = {k: sum(c[k] for c in counters) for k in counters[0]}
+    n = max(1, s["pedestrian_steps"])
+    minutes = s["pedestrian_steps"] * dt / 60.0
+    out = {
+        "pedestrian_steps": s["pedestrian_steps"],
+        "falls": s["falls"],
+        "falls_per_pedestrian_minute": s["falls"] / minutes if minutes > 0 else float("nan"),
+        "agent_contact_share": s["agent_contact_steps"] / n,
+        "robot_contact_share": s["robot_contact_steps"] / n,
+        "map_contact_share": s["map_contact_steps"] / n,
+        "path_error_m": s["path_error_sum"] / n,
+        "robot_episodes": s["robot_episodes"],
+    }
+    if s["robot_episodes"]:
+        out["robot_success_rate"] = s["robot_goals"] / s["robot_episodes"]
+        out["robot_collision_rate"] = s["robot_collisions"] / s["robot_episodes"]
+    return out
 
 
 class NavAmpVecEnv:
@@ -154,26 +176,14 @@ class NavAmpVecEnv:
                        "map_contact_steps": 0, "path_error_sum": 0.0, "robot_episodes": 0, "robot_goals": 0,
                        "robot_collisions": 0}
 
+    def counters(self) -> dict[str, Any]:
+        """The raw counts behind :meth:`stats` (they add up over envs: :func:`stats_from_counters`)."""
+        return dict(self._stats)
+
     def stats(self) -> dict[str, float]:
         """Rates since :meth:`reset_stats`: falls per pedestrian-minute, contact shares of pedestrian steps
         (with anything / with a robot / with the map), mean path error, robot goal and collision rates."""
-        s = self._stats
-        n = max(1, s["pedestrian_steps"])
-        minutes = s["pedestrian_steps"] * self.dt / 60.0
-        out = {
-            "pedestrian_steps": s["pedestrian_steps"],
-            "falls": s["falls"],
-            "falls_per_pedestrian_minute": s["falls"] / minutes if minutes > 0 else float("nan"),
-            "agent_contact_share": s["agent_contact_steps"] / n,
-            "robot_contact_share": s["robot_contact_steps"] / n,
-            "map_contact_share": s["map_contact_steps"] / n,
-            "path_error_m": s["path_error_sum"] / n,
-            "robot_episodes": s["robot_episodes"],
-        }
-        if s["robot_episodes"]:
-            out["robot_success_rate"] = s["robot_goals"] / s["robot_episodes"]
-            out["robot_collision_rate"] = s["robot_collisions"] / s["robot_episodes"]
-        return out
+        return stats_from_counters([self._stats], self.dt)
 
     # ------------------------------------------------------------------ reset
     def _rows(self, k: int) -> slice:
@@ -340,13 +350,93 @@ class NavAmpVecEnv:
         self._tick = 0
 
     def sample_reference_amp_obs(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        from navzoo.agents.amp.path_env import reference_amp_windows
-
-        return reference_amp_windows(self.reference, n, rng, self.window, self.dt, "finite_difference")
+        return _reference_windows(self.reference, self.window, self.dt, n, rng)
 
     def close(self) -> None:
         for env in self.envs:
             env.close()
+
+
+def _reference_windows(reference: Any, window: int, dt: float, n: int, rng: np.random.Generator) -> np.ndarray:
+    from navzoo.agents.amp.path_env import reference_amp_windows
+
+    return reference_amp_windows(reference, n, rng, window, dt, "finite_difference")
+
+
+def _nav_amp_env(env_id: str, n_envs: int, n_humans: int, n_robots: int, robot_policy: str, seed: int,
+                 env_overrides: dict[str, Any]) -> NavAmpVecEnv:
+    return NavAmpVecEnv(env_id, n_envs, n_humans, n_robots, robot_policy, seed, env_overrides)
+
+
+def _check_scenes(scenes: Sequence[str]) -> list[str]:
+    from navzoo.world.library import list_scenes
+
+    names = [str(x).strip() for x in scenes]
+    known = set(list_scenes())
+    unknown = [x for x in names if x not in known]
+    if not names or unknown:
+        raise ValueError(f"unknown scene(s) {unknown or names}; library scenes: {sorted(known)}")
+    return names
+
+
+class SubprocNavAmpVecEnv:
+    """The pedestrians of navzoo scenes in ``workers`` processes, one :class:`NavAmpVecEnv` each
+    (``n_envs`` copies x ``n_humans``), as one ``AmpVecEnv``: the AMP learner on the device machine's cores.
+
+    Worker ``w`` runs scene ``scenes[w % len(scenes)]`` (None: the scene of ``env_id``) with the seed
+    ``seed + 1009 w``. Robots are frozen (``robot_policy``); learning robots need one process
+    (:class:`NavAmpVecEnv`). :meth:`stats` sums every worker's counters.
+    """
+
+    robot_learner = None
+
+    def __init__(self, env_id: str, n_envs: int, n_humans: int, n_robots: int = 0, robot_policy: str = "orca",
+                 seed: int = 0, env_overrides: dict[str, Any] | None = None, workers: int = 2,
+                 scenes: Sequence[str] | None = None) -> None:
+        from functools import partial
+
+        from navzoo.agents.amp.path_env import PathTaskConfig, amp_obs_version
+        from navzoo.agents.amp.train import grounded_locomotion_reference
+        from navzoo.agents.amp.vec import SubprocVecEnv
+        from navzoo.envs.config import AMP_CONTROL_HZ
+
+        if isinstance(workers, bool) or not isinstance(workers, int | np.integer) or workers < 1:
+            raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+        overrides = dict(env_overrides or {})
+        if scenes is not None:
+            if "scene" in overrides:
+                raise ValueError("give the scenes either as scenes or as the 'scene' override, not both")
+            scenes = _check_scenes(scenes)
+        self.dt = 1.0 / AMP_CONTROL_HZ
+        self.window = 2
+        self.scenes = [scenes[w % len(scenes)] if scenes else overrides.get("scene") for w in range(int(workers))]
+        makers = [partial(_nav_amp_env, env_id, int(n_envs), int(n_humans), int(n_robots), robot_policy,
+                          int(seed) + 1009 * w, {**overrides, **({"scene": sc} if sc else {})})
+                  for w, sc in enumerate(self.scenes)]
+        reference = grounded_locomotion_reference()
+        self._vec = SubprocVecEnv(makers, partial(_reference_windows, reference, self.window, self.dt),
+                                  amp_obs_version(PathTaskConfig(amp_velocity="finite_difference"), reference))
+        v = self._vec
+        self.num_envs, self.obs_dim, self.act_dim, self.amp_obs_dim = v.num_envs, v.obs_dim, v.act_dim, v.amp_obs_dim
+        self.amp_obs_version = v.amp_obs_version
+
+    def reset(self, seed: int | None = None) -> np.ndarray:
+        return self._vec.reset(seed)
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        return self._vec.step(actions)
+
+    def sample_reference_amp_obs(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        return self._vec.sample_reference_amp_obs(n, rng)
+
+    def reset_stats(self) -> None:
+        self._vec.reset_stats()
+
+    def stats(self) -> dict[str, float]:
+        return stats_from_counters(self._vec.counters(), self.dt)
+
+    def close(self) -> None:
+        self._vec.close()
 
 
 def _robot_policy(spec: str) -> Any:
@@ -405,6 +495,11 @@ class AmpJointArgs:
     ckpt_every: int = 10
     env: dict[str, Any] = field(default_factory=dict)
     robot_learn: dict[str, Any] | None = None  # RobotLearnConfig fields: robots learn too; None: frozen robots
+    # > 1 or scenes given: worker processes, each with n_envs copies (SubprocNavAmpVecEnv; frozen robots only)
+    workers: int = 1
+    scenes: list[str] | None = None  # library scene names, one per worker in turn (None: env_id's scene)
+    snapshot_every: int = 0  # > 0: export the policy every that many iterations (and at the start) to out/snapshots
+    keep_checkpoints: int | None = None  # None: the start checkpoint's setting
 
 
 def _learner_config(args: AmpJointArgs, saved: dict[str, Any]):
@@ -414,6 +509,8 @@ def _learner_config(args: AmpJointArgs, saved: dict[str, Any]):
     keep.update(seed=args.seed, rollout_steps=args.rollout_steps, epochs=args.epochs,
                 minibatch_size=args.minibatch_size, actor_lr=args.actor_lr, disc_lr=args.disc_lr,
                 ckpt_replay_rows=min(int(keep.get("ckpt_replay_rows", 8000)), 8000))
+    if args.keep_checkpoints is not None:
+        keep["keep_checkpoints"] = int(args.keep_checkpoints)
     for k in ("actor_hidden", "critic_hidden", "disc_hidden"):
         if k in keep:
             keep[k] = tuple(keep[k])
@@ -433,7 +530,7 @@ def train(args: AmpJointArgs) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     saved_args = out / "amp_joint_args.json"
     mine = dataclasses.asdict(args)
-    fixed = ("env_id", "n_envs", "n_humans", "n_robots", "robot_policy", "init", "env")
+    fixed = ("env_id", "n_envs", "n_humans", "n_robots", "robot_policy", "init", "env", "workers", "scenes")
     robot_cfg = None
     if args.robot_learn is not None:
         from navzoo.rl.stepped_ppo import RobotLearnConfig
@@ -446,6 +543,14 @@ def train(args: AmpJointArgs) -> dict[str, Any]:
             raise ValueError(f"unknown robot_learn key(s) {unknown}; valid keys: {sorted(names)}")
         robot_cfg = RobotLearnConfig(**args.robot_learn)
         mine["robot_policy"] = "learn"
+    if robot_cfg is not None and (args.workers > 1 or args.scenes):
+        raise ValueError("learning robots need one process (workers=1, no scenes list); freeze the robots "
+                         "to train pedestrians over several workers or scenes")
+    if args.scenes is not None:
+        args.scenes = _check_scenes(args.scenes)
+        mine["scenes"] = args.scenes
+    if isinstance(args.workers, bool) or not isinstance(args.workers, int) or args.workers < 1:
+        raise ValueError(f"workers must be an integer >= 1, got {args.workers!r}")
     if saved_args.is_file() and ckpt.latest_checkpoint(out / "checkpoints") is not None:
         old = json.loads(saved_args.read_text())
         diff = [k for k in fixed if old.get(k) != mine.get(k)]
@@ -457,8 +562,13 @@ def train(args: AmpJointArgs) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
         start = shipped_training_checkpoint(tmp) if args.init == "shipped" else Path(args.init)
         _, meta = ckpt.load_checkpoint(start)
-        env = NavAmpVecEnv(args.env_id, args.n_envs, args.n_humans, args.n_robots, args.robot_policy, args.seed,
-                           args.env, robot_learn=robot_cfg, log_dir=out)
+        env: Any
+        if args.workers > 1 or args.scenes:
+            env = SubprocNavAmpVecEnv(args.env_id, args.n_envs, args.n_humans, args.n_robots, args.robot_policy,
+                                      args.seed, args.env, workers=args.workers, scenes=args.scenes)
+        else:
+            env = NavAmpVecEnv(args.env_id, args.n_envs, args.n_humans, args.n_robots, args.robot_policy, args.seed,
+                               args.env, robot_learn=robot_cfg, log_dir=out)
         try:
             learner = AmpLearner(env, _learner_config(args, meta.get("config") or {}), device=args.device)
             resumed = ckpt.latest_checkpoint(out / "checkpoints") is not None
@@ -467,7 +577,8 @@ def train(args: AmpJointArgs) -> dict[str, Any]:
             start_step = int(meta["counters"]["global_step"])
             t0 = time.time()
             result = learner.train(start_step + args.steps, log_dir=out, ckpt_dir=out / "checkpoints",
-                                   ckpt_every=args.ckpt_every, verbose=True, time_limit_s=args.time_limit_s)
+                                   ckpt_every=args.ckpt_every, verbose=True, time_limit_s=args.time_limit_s,
+                                   snapshot_dir=out / "snapshots", snapshot_every=args.snapshot_every)
             learner.export_policy(out / "policy")
             if env.robot_learner is not None:
                 env.robot_learner.export(out / "robot_policy", {
@@ -539,6 +650,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     tr.add_argument("--init", default="shipped", help="'shipped' or an AMP checkpoint folder to start from")
     tr.add_argument("--time-limit-s", type=float, default=None)
     tr.add_argument("--ckpt-every", type=int, default=10)
+    tr.add_argument("--workers", type=int, default=1,
+                    help="worker processes, each with --n-envs copies (frozen robots only)")
+    tr.add_argument("--scenes", default=None, metavar="A,B,...",
+                    help="library scenes, one per worker in turn (default: the scene of --env)")
+    tr.add_argument("--snapshot-every", type=int, default=0,
+                    help="export the policy to OUT/snapshots every N iterations and at the start (0: off)")
+    tr.add_argument("--keep-checkpoints", type=int, default=None, help="training checkpoints to keep")
     rl = tr.add_argument_group("learning robots (--robots learn: SB3 PPO with the transformer, stepped in the same worlds)")
     rl.add_argument("--robots", choices=["frozen", "learn"], default="frozen",
                     help="frozen (on --robot-policy) or learning at the same time as the pedestrians")
@@ -564,6 +682,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                                 epochs=a.epochs, minibatch_size=a.minibatch_size, actor_lr=a.actor_lr,
                                 disc_lr=a.disc_lr, device=a.device, seed=a.seed or 0, init=a.init,
                                 time_limit_s=a.time_limit_s, ckpt_every=a.ckpt_every, env=env,
+                                workers=a.workers, scenes=a.scenes.split(",") if a.scenes else None,
+                                snapshot_every=a.snapshot_every, keep_checkpoints=a.keep_checkpoints,
                                 robot_learn=None if a.robots == "frozen" else {
                                     "init_from": a.robot_init, "lr": a.robot_lr, "n_steps": a.robot_n_steps,
                                     "n_epochs": a.robot_epochs, "batch_size": a.robot_batch_size,

@@ -1,9 +1,12 @@
-"""Spread :class:`~navzoo.agents.amp.path_env.AmpPathEnv` over worker processes (one PyBullet client each).
+"""Spread AMP training envs over worker processes (one PyBullet client each).
 
 PyBullet simulation is CPU-bound and single-threaded per client, so throughput scales with worker
-processes (the device machine has 16 cores). Each worker hosts ``envs_per_worker`` humanoids; the main
-process concatenates their batches and samples the discriminator's reference windows itself. A worker
-that dies is reported with its index and the last command instead of hanging the learner.
+processes (the device machine has 16 cores). :class:`SubprocVecEnv` runs any env of the learner's
+``AmpVecEnv`` protocol, one per worker, e.g. :class:`~navzoo.agents.amp.path_env.AmpPathEnv`
+(:class:`SubprocAmpVecEnv`: ``envs_per_worker`` humanoids each) or the pedestrians of navzoo scenes
+(:class:`navzoo.rl.amp_joint.NavAmpVecEnv`, a scene per worker). The main process concatenates their
+batches and samples the discriminator's reference windows itself. A worker that dies is reported with
+its index and the last command instead of hanging the learner.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import multiprocessing as mp
 import signal
 import traceback
 from collections.abc import Callable
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -20,21 +24,28 @@ from navzoo.agents.amp.path_env import AmpPathEnv, PathTaskConfig, amp_obs_versi
 from navzoo.agents.reference import ReferenceMotion
 
 
-def _worker(conn: Any, make_reference: Callable[[], ReferenceMotion], n: int, config: PathTaskConfig,
-            seed: int) -> None:
+def _path_env(make_reference: Callable[[], ReferenceMotion], n: int, config: PathTaskConfig, seed: int) -> AmpPathEnv:
+    return AmpPathEnv(n, make_reference(), config, seed=seed)
+
+
+def _worker(conn: Any, make_env: Callable[[], Any]) -> None:
     # Ctrl-C reaches the whole process group; the learner handles it (finishes the iteration and
     # checkpoints, which needs the workers) and closes them.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     env = None
     try:
-        env = AmpPathEnv(n, make_reference(), config, seed=seed)
-        conn.send(("ready", (env.obs_dim, env.act_dim, env.amp_obs_dim)))
+        env = make_env()
+        conn.send(("ready", (env.num_envs, env.obs_dim, env.act_dim, env.amp_obs_dim)))
         while True:
             cmd, arg = conn.recv()
             if cmd == "reset":
                 conn.send(("ok", env.reset(arg)))
             elif cmd == "step":
                 conn.send(("ok", env.step(arg)))
+            elif cmd == "counters":
+                conn.send(("ok", env.counters()))
+            elif cmd == "reset_stats":
+                conn.send(("ok", env.reset_stats()))
             elif cmd == "close":
                 conn.send(("ok", None))
                 break
@@ -47,38 +58,42 @@ def _worker(conn: Any, make_reference: Callable[[], ReferenceMotion], n: int, co
             env.close()
 
 
-class SubprocAmpVecEnv:
-    """``workers`` processes x ``envs_per_worker`` humanoids behind the ``AmpVecEnv`` protocol.
+class SubprocVecEnv:
+    """Vectorised AMP envs, one per worker process, behind the ``AmpVecEnv`` protocol: the batch is the
+    workers' rows one after the other.
 
     Args:
-        make_reference: builds the reference motions (called in every worker and once here; must be
-            picklable, e.g. a module-level function).
-        workers, envs_per_worker: process count and humanoids per process.
-        config: task settings.
-        seed: worker ``w`` seeds its generator with ``seed + w``.
+        make_envs: one picklable callable per worker (e.g. a ``functools.partial`` of a module-level
+            function) that builds that worker's env, which has ``num_envs``, ``obs_dim``, ``act_dim``,
+            ``amp_obs_dim``, ``reset`` and ``step`` (``counters`` / ``reset_stats`` if :meth:`counters` is used).
+        sample_reference: ``(n, rng) -> (n, amp_obs_dim)`` reference windows for the discriminator,
+            sampled in this process (no simulation needed).
+        amp_obs_version: the discriminator inputs' version (checked against checkpoints).
     """
 
-    def __init__(self, make_reference: Callable[[], ReferenceMotion], workers: int, envs_per_worker: int,
-                 config: PathTaskConfig | None = None, seed: int = 0) -> None:
-        self.config = config or PathTaskConfig()
-        self.workers = int(workers)
-        self.envs_per_worker = int(envs_per_worker)
-        self.num_envs = self.workers * self.envs_per_worker
+    def __init__(self, make_envs: list[Callable[[], Any]], sample_reference: Callable[[int, np.random.Generator], np.ndarray],
+                 amp_obs_version: Any) -> None:
+        if not make_envs:
+            raise ValueError("SubprocVecEnv needs at least one worker")
+        self.workers = len(make_envs)
         ctx = mp.get_context("spawn")
         self._conns, self._procs = [], []
-        for w in range(self.workers):
+        for make_env in make_envs:
             parent, child = ctx.Pipe()
-            proc = ctx.Process(target=_worker, args=(child, make_reference, self.envs_per_worker, self.config, seed + w),
-                               daemon=True)
+            proc = ctx.Process(target=_worker, args=(child, make_env), daemon=True)
             proc.start()
             child.close()
             self._conns.append(parent)
             self._procs.append(proc)
         dims = [self._recv(w, "start") for w in range(self.workers)]
-        self.obs_dim, self.act_dim, self.amp_obs_dim = dims[0]
-        # The discriminator's real samples come from the clips here (no simulation needed).
-        self._reference = make_reference()
-        self.amp_obs_version = amp_obs_version(self.config, self._reference)
+        if len({d[1:] for d in dims}) != 1:
+            raise ValueError(f"the workers' envs differ in (obs_dim, act_dim, amp_obs_dim): {[d[1:] for d in dims]}")
+        self._sizes = [int(d[0]) for d in dims]
+        self._bounds = np.concatenate([[0], np.cumsum(self._sizes)])
+        self.num_envs = int(self._bounds[-1])
+        self.obs_dim, self.act_dim, self.amp_obs_dim = dims[0][1:]
+        self._sample_reference = sample_reference
+        self.amp_obs_version = amp_obs_version
 
     def _recv(self, w: int, what: str) -> Any:
         try:
@@ -98,9 +113,9 @@ class SubprocAmpVecEnv:
         return np.concatenate([self._recv(w, "reset") for w in range(self.workers)])
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        k = self.envs_per_worker
+        b = self._bounds
         for w, c in enumerate(self._conns):
-            c.send(("step", np.asarray(actions[w * k:(w + 1) * k])))
+            c.send(("step", np.asarray(actions[b[w]:b[w + 1]])))
         parts = [self._recv(w, "step") for w in range(self.workers)]
         obs = np.concatenate([p[0] for p in parts])
         rew = np.concatenate([p[1] for p in parts])
@@ -116,8 +131,19 @@ class SubprocAmpVecEnv:
         return obs, rew, term, trunc, info
 
     def sample_reference_amp_obs(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        return reference_amp_windows(self._reference, n, rng, self.config.amp_window, 1.0 / self.config.control_hz,
-                                     self.config.amp_velocity)
+        return self._sample_reference(n, rng)
+
+    def counters(self) -> list[dict[str, Any]]:
+        """Every worker env's ``counters()`` (statistics since its last ``reset_stats``)."""
+        for c in self._conns:
+            c.send(("counters", None))
+        return [self._recv(w, "counters") for w in range(self.workers)]
+
+    def reset_stats(self) -> None:
+        for c in self._conns:
+            c.send(("reset_stats", None))
+        for w in range(self.workers):
+            self._recv(w, "reset_stats")
 
     def close(self) -> None:
         for w, c in enumerate(self._conns):
@@ -130,3 +156,28 @@ class SubprocAmpVecEnv:
             p.join(timeout=10)
             if p.is_alive():
                 p.terminate()
+
+
+class SubprocAmpVecEnv(SubprocVecEnv):
+    """``workers`` processes x ``envs_per_worker`` humanoids of :class:`AmpPathEnv`.
+
+    Args:
+        make_reference: builds the reference motions (called in every worker and once here; must be
+            picklable, e.g. a module-level function).
+        workers, envs_per_worker: process count and humanoids per process.
+        config: task settings.
+        seed: worker ``w`` seeds its generator with ``seed + w``.
+    """
+
+    def __init__(self, make_reference: Callable[[], ReferenceMotion], workers: int, envs_per_worker: int,
+                 config: PathTaskConfig | None = None, seed: int = 0) -> None:
+        self.config = config or PathTaskConfig()
+        self.envs_per_worker = int(envs_per_worker)
+        reference = make_reference()
+        cfg = self.config
+        super().__init__(
+            [partial(_path_env, make_reference, self.envs_per_worker, cfg, seed + w) for w in range(int(workers))],
+            partial(reference_amp_windows, reference, window=cfg.amp_window, dt=1.0 / cfg.control_hz,
+                    velocity=cfg.amp_velocity),
+            amp_obs_version(cfg, reference))
+        self._reference = reference
