@@ -79,3 +79,8 @@ def test_training_over_workers_and_scenes_snapshots_and_resumes_only_as_itself(t
     assert json.loads((tmp_path / "run" / "amp_joint_args.json").read_text())["scenes"] == ["apartment", "two_doors"]
     with pytest.raises(ValueError, match="holds a run with other"):
         train(AmpJointArgs(**{**args.__dict__, "workers": 3}))
+
+
+def test_a_worker_that_cannot_build_its_env_is_reported_with_its_traceback():
+    with pytest.raises(RuntimeError, match=r"(?s)AMP worker 0 failed during 'start'.*NoSuchScenario"):
+        SubprocNavAmpVecEnv("navzoo/NoSuchScenario-v0", 1, 1, 0, workers=2)

@@ -85,8 +85,13 @@ class SubprocVecEnv:
             child.close()
             self._conns.append(parent)
             self._procs.append(proc)
-        dims = [self._recv(w, "start") for w in range(self.workers)]
+        try:
+            dims = [self._recv(w, "start") for w in range(self.workers)]
+        except RuntimeError:
+            self.close()  # the workers that did start
+            raise
         if len({d[1:] for d in dims}) != 1:
+            self.close()
             raise ValueError(f"the workers' envs differ in (obs_dim, act_dim, amp_obs_dim): {[d[1:] for d in dims]}")
         self._sizes = [int(d[0]) for d in dims]
         self._bounds = np.concatenate([[0], np.cumsum(self._sizes)])
