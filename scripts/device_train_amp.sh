@@ -14,8 +14,9 @@
 # and at the start, keeps all its checkpoints, and afterwards runs the short following protocol
 # (scripts/amp_select_snapshots.py stage 1: 60 s per scene, seed 2, steering trim TRIM, default 0.025 rad) on
 # every snapshot for at most SELECT_S seconds (default 200). The checkpoint returned is then the one of the
-# best snapshot of the short protocol, not the last; small.tgz holds latest.json, selection.json, short.jsonl
-# and the selection log. Run the full protocol on it (and the baseline) in a second call.
+# best snapshot of the short protocol, not the last; small.tgz holds latest.json, selection.json, short.jsonl,
+# the selection log and best_policy/ (the best snapshot's exported policy). Run the full protocol on it (and the
+# baseline) in a second call.
 #   device run:  SNAPSHOT_EVERY=40 STAGE=3 OBSTACLES=1 TRAIN_S=380 LIMIT_S=340 TRAIN_ARGS="..." bash scripts/device_train_amp.sh
 #
 # TRAINER=scenes: train in navzoo scenes instead of the patch env (python -m navzoo.rl.amp_joint train, from the
@@ -76,7 +77,12 @@ print(max(s, key=lambda n: s[n]['success']) if s else '')")
   else
     echo "returning the last checkpoint $name: the best snapshot (${best:-none}) has no checkpoint"
   fi
-  (cd /tmp/amp && cp checkpoints/latest.json . && tar czf "$OUT/small.tgz" latest.json select.log selection)
+  # the best snapshot's exported policy too (about 3 MB), ready for the full protocol in a second call
+  extra=""
+  if [ -n "$best" ] && [ -d "/tmp/amp/snapshots/policy_$(printf %08d "${best#it}")" ]; then
+    cp -r "/tmp/amp/snapshots/policy_$(printf %08d "${best#it}")" /tmp/amp/best_policy && extra=best_policy
+  fi
+  (cd /tmp/amp && cp checkpoints/latest.json . && tar czf "$OUT/small.tgz" latest.json select.log selection $extra)
 else
   cp /tmp/amp/checkpoints/latest.json "$OUT/"
 fi
