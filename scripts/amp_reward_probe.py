@@ -2,7 +2,7 @@
 (``navzoo.rl.amp_joint.NavAmpVecEnv``: social-force targets replanned from the body every 2 s, no steering trim,
 i.e. what scene training sees) and print, per policy, the mean per-step pedestrian reward (track + energy +
 direction, the paper's task terms), the goals reached per pedestrian-minute, falls, contact shares and the path
-error.
+error. ``--set amp_progress_reward=W`` adds the optional progress term to the reward.
 
     python scripts/amp_reward_probe.py --scenes apartment,cafe,campus_plaza,hospital_corridor,shopping_mall,two_doors \\
         --policies s5174=policies/amp_pedestrian,n5325=DIR --steps 1800 --out FILE.json
@@ -18,14 +18,15 @@ from pathlib import Path
 import numpy as np
 
 
-def probe(policy_dir: str, scenes: list[str], steps: int, people: int = 6, seed: int = 100) -> dict:
+def probe(policy_dir: str, scenes: list[str], steps: int, people: int = 6, seed: int = 100,
+          overrides: dict | None = None) -> dict:
     from navzoo.agents.amp.checkpoint import load_policy
     from navzoo.rl.amp_joint import NavAmpVecEnv, stats_from_counters
 
     act = load_policy(policy_dir)
     reward_sum, reward_n, goals, counters = 0.0, 0, 0, []
     for k, scene in enumerate(scenes):
-        env = NavAmpVecEnv("navzoo/Lobby-v0", 1, people, 0, seed=seed + k, env_overrides={"scene": scene})
+        env = NavAmpVecEnv("navzoo/Lobby-v0", 1, people, 0, seed=seed + k, env_overrides={**(overrides or {}), "scene": scene})
         try:
             obs = env.reset(seed=seed + k)
             before = env.envs[0].goals_reached.copy()
@@ -53,16 +54,21 @@ def main() -> int:
     ap.add_argument("--policies", required=True, help="NAME=DIR,... exported AMP policies")
     ap.add_argument("--steps", type=int, default=1800, help="30 Hz steps per scene")
     ap.add_argument("--people", type=int, default=6)
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="NavConfig override, e.g. amp_progress_reward=0.5")
     ap.add_argument("--out", default=None, help="JSON file for the results")
     a = ap.parse_args()
+    from navzoo.envs.config import parse_overrides
+
     scenes = a.scenes.split(",")
-    out = {"scenes": scenes, "steps": a.steps, "people": a.people, "results": {}}
+    overrides = parse_overrides(a.set)
+    out = {"scenes": scenes, "steps": a.steps, "people": a.people, "overrides": overrides, "results": {}}
     for item in a.policies.split(","):
         name, _, pdir = item.partition("=")
         if not (Path(pdir) / "config.json").is_file():
             ap.error(f"{item!r}: no exported AMP policy (config.json) in {pdir!r}")
         t0 = time.time()
-        out["results"][name] = {**probe(pdir, scenes, a.steps, a.people), "wall_s": round(time.time() - t0, 1)}
+        out["results"][name] = {**probe(pdir, scenes, a.steps, a.people, overrides=overrides), "wall_s": round(time.time() - t0, 1)}
         print(name, json.dumps(out["results"][name]), flush=True)
     if a.out:
         Path(a.out).write_text(json.dumps(out, indent=2) + "\n")

@@ -189,3 +189,30 @@ def test_eval_pedestrians_cli_quick(tmp_path):
         assert set(res["realism"][model]) >= {"coverage_k50", "entropy_k50", "coverage_k100", "entropy_k100", "mmd"}
         assert 0.0 < res["realism"][model]["coverage_k50"] <= 1.0
     assert 0.0 <= res["following"]["success_rate"] <= 1.0
+
+
+def test_the_optional_progress_reward_pays_for_walking_toward_the_path_and_changes_nothing_else():
+    from navzoo.agents.amp.checkpoint import load_policy
+    from navzoo.agents.amp.pedestrian_policy import default_policy_dir
+
+    act = load_policy(default_policy_dir())
+    envs = [_raw(n_robots=0, n_humans=3, max_episode_steps_override=90),
+            _raw(n_robots=0, n_humans=3, max_episode_steps_override=90, amp_progress_reward=0.5)]
+    obs = [e.reset(seed=4)[0] for e in envs]
+    progress = []
+    for _ in range(60):
+        acts = {h: np.clip(act(obs[0][h][None])[0], -1, 1) for h in obs[0]}
+        (o0, r0, *_, i0), (o1, r1, *_, i1) = (e.step(acts) for e in envs)
+        obs = [o0, o1]
+        for h in r0:
+            assert "reward/path_progress" not in i0[h]
+            np.testing.assert_array_equal(o0[h], o1[h])  # the same world: only the reward differs
+            assert r1[h] == pytest.approx(r0[h] + 0.5 * i1[h]["reward/path_progress"], abs=1e-6)
+            assert -1.0 <= i1[h]["reward/path_progress"] <= 1.0
+            progress.append(i1[h]["reward/path_progress"])
+    assert np.mean(progress[-60:]) > 0.5  # walking along their paths near their preferred speed
+    for e in envs:
+        e.close()
+    for bad in (-0.1, float("nan"), True):
+        with pytest.raises(ValueError, match="amp_progress_reward"):
+            NavConfig(human_model="amp", dt=DT, amp_progress_reward=bad)

@@ -83,6 +83,12 @@ class NavConfig:
         physics_substeps: PyBullet steps per control step (``human_model="amp"``: fixed by the
             humanoids' 120 Hz physics, this field is ignored).
         amp_replan_seconds: ``human_model="amp"``: period of the target trajectory rollouts (s).
+        amp_progress_reward: ``human_model="amp"``: weight of a progress term added to the pedestrians'
+            task reward: the body's speed toward the next waypoint of its path, as a share of its
+            preferred speed, clipped to [-1, 1] (0 for fallen or arrived people;
+            ``info["reward/path_progress"]``). 0 (default) = the paper's reward, whose tracking term
+            follows targets replanned from the body every ``amp_replan_seconds`` and so does not pay for
+            reaching the goal (docs/pedestrians.md, "Run 26").
         time_limit: episode length (s); ``None`` = the scene's own limit.
         goal_tolerance: a robot reaches its goal when closer than this (m); ``None`` = robot radius
             (CrowdNav's rule, as the paper's reward).
@@ -151,6 +157,7 @@ class NavConfig:
     dt: float = 0.1
     physics_substeps: int = 2
     amp_replan_seconds: float = 2.0
+    amp_progress_reward: float = 0.0
     time_limit: float | None = None
     goal_tolerance: float | None = None
     min_goal_distance: float = 3.0
@@ -197,6 +204,9 @@ class NavConfig:
                                  f"(the AMP controller's rate), got {self.dt!r}; use dt=1/{AMP_CONTROL_HZ}")
         if not _is_pos(self.amp_replan_seconds):
             raise bad("amp_replan_seconds", "a finite number > 0")
+        if (isinstance(self.amp_progress_reward, bool) or not isinstance(self.amp_progress_reward, int | float)
+                or not math.isfinite(self.amp_progress_reward) or self.amp_progress_reward < 0):
+            raise bad("amp_progress_reward", "a finite number >= 0")
         if self.crowd_model not in CROWD_MODELS:
             raise bad("crowd_model", "'sfm', 'orca', 'orca_rvo2', 'diffusion' or 'replay'")
         self._validate_replay()

@@ -606,6 +606,9 @@ class NavEnv(ParallelEnv):
             # Pedestrians' reward is the controller's task reward (r_tau + r_e + r_d); a learner adds
             # the style reward of its discriminator.
             rew[hum] = amp_terms["track"] + amp_terms["energy"] + amp_terms["direction"]
+            if self.config.amp_progress_reward:
+                amp_terms["path_progress"] = self._human_progress()
+                rew[hum] += self.config.amp_progress_reward * amp_terms["path_progress"]
         if self.replay is not None and hum.size:  # replayed people do not act: nothing to reward
             rew[hum] = 0.0
             for name in TERMS:
@@ -671,8 +674,9 @@ class NavEnv(ParallelEnv):
                     info["map_contact"] = bool(self.human_map_contact[j])
                     info["agent_contact"] = bool(self.human_agent_contact[j])
                     info["robot_contact"] = bool(self.human_robot_contact[j])
-                    for name in ("track", "energy", "direction", "path_error"):
-                        info[f"reward/{name}" if name != "path_error" else name] = float(amp_terms[name][j])
+                    for name in ("track", "energy", "direction", "path_progress", "path_error"):
+                        if name in amp_terms:
+                            info[f"reward/{name}" if name != "path_error" else name] = float(amp_terms[name][j])
             if nan_state:
                 info["nan_state"] = True
             infos[a] = info
@@ -851,6 +855,23 @@ class NavEnv(ParallelEnv):
         for i in range(self.n_total):
             ahead = WAYPOINT_LOOKAHEAD if self.amp is not None and i >= self.n_robots else 0
             self.wp_index[i] = advance_waypoint(self.paths[i], int(self.wp_index[i]), self.pos[i], tol, ahead)
+
+    def _human_progress(self) -> np.ndarray:
+        """(H,) each pedestrian's speed toward the next waypoint of its path, as a share of its preferred
+        speed, clipped to [-1, 1]; 0 for fallen or arrived people (``NavConfig.amp_progress_reward``)."""
+        R = self.n_robots
+        out = np.zeros(self.n_humans)
+        fallen = self.human_fallen
+        for j in range(self.n_humans):
+            i = R + j
+            path = self.paths[i]
+            if self.arrived[i] or fallen[j] or len(path) == 0:
+                continue
+            to_wp = path[min(int(self.wp_index[i]), len(path) - 1)] - self.pos[i]
+            dist = float(np.linalg.norm(to_wp))
+            if dist > 1e-6:
+                out[j] = np.clip(float(self.vel[i] @ to_wp) / dist / max(float(self.v_pref[i]), 1e-6), -1.0, 1.0)
+        return out
 
     def human_preferred_velocity(self, yielding: bool = True, t: float | None = None,
                                  slow_radius: float = 0.5) -> np.ndarray:
