@@ -859,18 +859,14 @@ class NavEnv(ParallelEnv):
     def _human_progress(self) -> np.ndarray:
         """(H,) each pedestrian's speed toward the next waypoint of its path, as a share of its preferred
         speed, clipped to [-1, 1]; 0 for fallen or arrived people (``NavConfig.amp_progress_reward``)."""
-        R = self.n_robots
-        out = np.zeros(self.n_humans)
-        fallen = self.human_fallen
-        for j in range(self.n_humans):
-            i = R + j
-            path = self.paths[i]
-            if self.arrived[i] or fallen[j] or len(path) == 0:
-                continue
-            to_wp = path[min(int(self.wp_index[i]), len(path) - 1)] - self.pos[i]
-            dist = float(np.linalg.norm(to_wp))
-            if dist > 1e-6:
-                out[j] = np.clip(float(self.vel[i] @ to_wp) / dist / max(float(self.v_pref[i]), 1e-6), -1.0, 1.0)
+        h = np.arange(self.n_robots, self.n_total)
+        wp = np.array([self.paths[i][min(int(self.wp_index[i]), len(self.paths[i]) - 1)] if len(self.paths[i])
+                       else self.pos[i] for i in h]).reshape(-1, 2)
+        to_wp = wp - self.pos[h]
+        dist = np.linalg.norm(to_wp, axis=1)
+        speed = np.einsum("ij,ij->i", self.vel[h], to_wp) / np.maximum(dist, 1e-9)
+        out = np.clip(speed / np.maximum(self.v_pref[h], 1e-6), -1.0, 1.0)
+        out[(dist <= 1e-6) | self.arrived[h] | self.human_fallen] = 0.0
         return out
 
     def human_preferred_velocity(self, yielding: bool = True, t: float | None = None,

@@ -40,10 +40,13 @@ import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from navzoo.agents.amp.vec import SubprocVecEnv
 
 __all__ = ["AmpJointArgs", "NavAmpVecEnv", "SubprocNavAmpVecEnv", "evaluate", "main", "shipped_training_checkpoint",
            "stats_from_counters", "train"]
@@ -379,7 +382,7 @@ def _check_scenes(scenes: Sequence[str]) -> list[str]:
     return names
 
 
-class SubprocNavAmpVecEnv:
+class SubprocNavAmpVecEnv(SubprocVecEnv):
     """The pedestrians of navzoo scenes in ``workers`` processes, one :class:`NavAmpVecEnv` each
     (``n_envs`` copies x ``n_humans``), as one ``AmpVecEnv``: the AMP learner on the device machine's cores.
 
@@ -393,11 +396,8 @@ class SubprocNavAmpVecEnv:
     def __init__(self, env_id: str, n_envs: int, n_humans: int, n_robots: int = 0, robot_policy: str = "orca",
                  seed: int = 0, env_overrides: dict[str, Any] | None = None, workers: int = 2,
                  scenes: Sequence[str] | None = None) -> None:
-        from functools import partial
-
         from navzoo.agents.amp.path_env import PathTaskConfig, amp_obs_version
         from navzoo.agents.amp.train import grounded_locomotion_reference
-        from navzoo.agents.amp.vec import SubprocVecEnv
         from navzoo.envs.config import AMP_CONTROL_HZ
 
         if isinstance(workers, bool) or not isinstance(workers, int | np.integer) or workers < 1:
@@ -414,29 +414,11 @@ class SubprocNavAmpVecEnv:
                           int(seed) + 1009 * w, {**overrides, **({"scene": sc} if sc else {})})
                   for w, sc in enumerate(self.scenes)]
         reference = grounded_locomotion_reference()
-        self._vec = SubprocVecEnv(makers, partial(_reference_windows, reference, self.window, self.dt),
-                                  amp_obs_version(PathTaskConfig(amp_velocity="finite_difference"), reference))
-        v = self._vec
-        self.num_envs, self.obs_dim, self.act_dim, self.amp_obs_dim = v.num_envs, v.obs_dim, v.act_dim, v.amp_obs_dim
-        self.amp_obs_version = v.amp_obs_version
-
-    def reset(self, seed: int | None = None) -> np.ndarray:
-        return self._vec.reset(seed)
-
-    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        return self._vec.step(actions)
-
-    def sample_reference_amp_obs(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        return self._vec.sample_reference_amp_obs(n, rng)
-
-    def reset_stats(self) -> None:
-        self._vec.reset_stats()
+        super().__init__(makers, partial(_reference_windows, reference, self.window, self.dt),
+                         amp_obs_version(PathTaskConfig(amp_velocity="finite_difference"), reference))
 
     def stats(self) -> dict[str, float]:
-        return stats_from_counters(self._vec.counters(), self.dt)
-
-    def close(self) -> None:
-        self._vec.close()
+        return stats_from_counters(self.counters(), self.dt)
 
 
 def _robot_policy(spec: str) -> Any:
