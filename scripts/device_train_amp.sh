@@ -23,6 +23,8 @@
 # shipped training checkpoint in training/amp): WORKERS processes, each with N_ENVS copies x N_HUMANS pedestrians
 # of one scene of SCENES (comma-separated library scenes, one per worker in turn), no robots; STAGE, OBSTACLES,
 # RESET_DISC and RESUME_DIR do not apply. TRAIN_ARGS go to amp_joint train (e.g. --actor-lr, --disc-lr).
+# INIT_DIR=DIR starts the scene training from a checkpoint returned by an earlier call (its name, meta.json and
+# state.pt.part-* files) instead of the shipped one; training/amp is then not needed and can stay behind.
 set -u
 python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/*.whl 2>&1 | grep -v "already exists" | tail -2
 export PYTHONPATH=/tmp/site:$PWD
@@ -43,10 +45,16 @@ SNAP=${SNAPSHOT_EVERY:-0}
 SNAP_ARGS=""
 [ "$SNAP" -gt 0 ] && SNAP_ARGS="--snapshot-every $SNAP --keep-checkpoints 1000"
 if [ "$TRAINER" = scenes ]; then
+  INIT_ARGS=""
+  if [ -n "${INIT_DIR:-}" ]; then  # start from another run's checkpoint (name, meta.json, state.pt.part-*)
+    init=/tmp/amp_init/$(cat "$INIT_DIR/name")
+    mkdir -p "$init" && cat "$INIT_DIR"/state.pt.part-* > "$init/state.pt" && cp "$INIT_DIR/meta.json" "$init/"
+    INIT_ARGS="--init $init"; echo "starting from $init"
+  fi
   timeout "${TRAIN_S:-500}" python3 -m navzoo.rl.amp_joint train --out /tmp/amp --workers "${WORKERS:-16}" \
     --n-envs "${N_ENVS:-2}" --n-humans "${N_HUMANS:-6}" --n-robots 0 --scenes "${SCENES:?set SCENES}" --device cuda \
     --minibatch-size "${MINIBATCH:-1536}" --time-limit-s "${LIMIT_S:-455}" --steps 500000000 --ckpt-every 10 \
-    $SNAP_ARGS ${TRAIN_ARGS:-} > "$OUT/train.log" 2>&1
+    $INIT_ARGS $SNAP_ARGS ${TRAIN_ARGS:-} > "$OUT/train.log" 2>&1
 elif [ "$TRAINER" = path ]; then
   timeout "${TRAIN_S:-500}" python3 -m navzoo.agents.amp.train --out /tmp/amp --workers "${WORKERS:-15}" --envs-per-worker 16 \
     --device cuda --hidden 1024,512 --minibatch-size "${MINIBATCH:-1920}" --time-limit-s "${LIMIT_S:-455}" \
