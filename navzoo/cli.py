@@ -68,6 +68,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_trim_arguments(tsub.add_parser(
         "amp-trim", help="calibrate an AMP policy's steering trim on open-ground paths (see docs/pedestrians.md)"))
+    avg = tsub.add_parser(
+        "amp-average", help="average exported AMP policies fine-tuned from one checkpoint into one (a model soup)")
+    avg.add_argument("policies", nargs="+", metavar="POLICY_DIR", help="exported AMP policy folders (two or more)")
+    avg.add_argument("--weights", default=None, metavar="W1,W2,...", help="averaging weights (default: equal)")
+    avg.add_argument("--out", required=True, help="folder of the averaged policy (config.json + policy.pt)")
     from navzoo.agents.diffusion.train import add_arguments as add_diffusion_arguments
 
     add_diffusion_arguments(tsub.add_parser(
@@ -278,6 +283,16 @@ def _train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         from navzoo.agents.amp.steering import run as run_trim
 
         return run_trim(args)
+    if args.train_command == "amp-average":
+        from navzoo.agents.amp.checkpoint import CheckpointError, average_policies
+
+        try:
+            weights = None if args.weights is None else [float(x) for x in args.weights.split(",")]
+            out = average_policies(args.policies, args.out, weights)
+        except (ValueError, CheckpointError) as e:
+            parser.error(f"train amp-average: {e}")
+        print(json.dumps({"policy": str(out), "averaged_from": json.loads((out / "config.json").read_text())["averaged_from"]}))
+        return 0
     if args.train_command == "diffusion":
         from navzoo.agents.diffusion.train import run_cli as run_diffusion
 

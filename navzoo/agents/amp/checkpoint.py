@@ -463,3 +463,67 @@ def load_policy(path: str | os.PathLike[str], device: str = "cpu") -> Callable[[
         return AmpPolicy(actor, norm, cfg, device)
     except (ValueError, TypeError) as e:
         raise CheckpointError(f"{cfg_path}: {e}") from e
+
+
+#: Config fields that exported policies must share to be averaged (:func:`average_policies`).
+_AVERAGE_MUST_MATCH = ("obs_dim", "act_dim", "actor_hidden", "activation", "obs_norm_eps", "obs_clip")
+
+
+def average_policies(
+    paths: list[str | os.PathLike[str]],
+    out: str | os.PathLike[str],
+    weights: list[float] | None = None,
+) -> Path:
+    """Write the weighted average of exported AMP policies (a "model soup") as a new exported policy.
+
+    Every tensor of the actor and of the observation normaliser (mean and variance) is averaged with
+    ``weights`` (default: equal; they must be finite, >= 0, and are normalised to sum 1); the
+    normaliser's sample count is the weighted mean too. Averaging is meaningful for policies fine-tuned
+    from one starting checkpoint (e.g. snapshots of runs branching from the shipped one), whose weights
+    stay close; it is not for independently trained ones. The policies must share dims, architecture
+    and normaliser settings, and none may be a symmetric (mirrored) policy. Each input is verified
+    (format, sha256) as :func:`load_policy` does. The output carries no steering trim (calibrate it with
+    ``navzoo train amp-trim``) and lists its sources under ``averaged_from``.
+    """
+    if len(paths) < 2:
+        raise ValueError(f"average_policies needs at least two policies, got {len(paths)}")
+    if weights is None:
+        weights = [1.0] * len(paths)
+    if len(weights) != len(paths):
+        raise ValueError(f"{len(weights)} weights for {len(paths)} policies")
+    w = np.asarray(weights, dtype=np.float64)
+    if not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+        raise ValueError(f"weights must be finite, >= 0 and not all 0, got {list(weights)}")
+    w = w / w.sum()
+    policies = [load_policy(p) for p in paths]
+    first = policies[0].config
+    for p, pol in zip(paths[1:], policies[1:], strict=True):
+        for key in _AVERAGE_MUST_MATCH:
+            if pol.config.get(key) != first.get(key):
+                raise CheckpointError(
+                    f"{p}: {key} {pol.config.get(key)!r} differs from {paths[0]}'s {first.get(key)!r}; "
+                    "only policies of one architecture can be averaged"
+                )
+    for p, pol in zip(paths, policies, strict=True):
+        if pol.config.get("symmetric"):
+            raise CheckpointError(f"{p}: a symmetric policy cannot be averaged (its actor is mirrored at run time)")
+    actor_states = [pol.actor.state_dict() for pol in policies]
+    norm_states = [pol.obs_norm.state_dict() for pol in policies]
+    avg_actor = {k: sum(float(wi) * s[k].double() for wi, s in zip(w, actor_states, strict=True)).to(actor_states[0][k].dtype)
+                 for k in actor_states[0]}
+    avg_norm = {k: sum(float(wi) * s[k].double() for wi, s in zip(w, norm_states, strict=True)).to(norm_states[0][k].dtype)
+                for k in norm_states[0]}
+    actor = policies[0].actor
+    actor.load_state_dict(avg_actor)
+    obs_norm = policies[0].obs_norm
+    obs_norm.load_state_dict(avg_norm)
+    config = {k: first[k] for k in ("obs_dim", "act_dim", "actor_hidden", "activation", "action_low", "action_high")
+              if k in first}
+    config["trained_iterations"] = max(int(pol.config.get("trained_iterations", 0)) for pol in policies)
+    config["trained_steps"] = max(int(pol.config.get("trained_steps", 0)) for pol in policies)
+    config["averaged_from"] = [
+        {"path": str(p), "weight": float(wi), "weights_sha256": pol.config["weights_sha256"],
+         "trained_iterations": pol.config.get("trained_iterations")}
+        for p, wi, pol in zip(paths, w, policies, strict=True)
+    ]
+    return export_policy_files(out, actor.cpu(), obs_norm.cpu(), config)

@@ -1,0 +1,87 @@
+"""Weight averaging of exported AMP policies (navzoo.agents.amp.checkpoint.average_policies, `navzoo train amp-average`)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from navzoo.agents.amp.checkpoint import CheckpointError, average_policies, export_policy_files, load_policy
+from navzoo.agents.amp.features import FEATURE_DIM, N_RAYS
+from navzoo.agents.amp.networks import Actor
+from navzoo.agents.amp.normalizer import RunningMeanStd
+from navzoo.cli import main as cli_main
+
+OBS, ACT = FEATURE_DIM + 20 + N_RAYS, 28  # the controller's layout (a symmetric policy needs it)
+
+
+def _policy(path: Path, seed: int, hidden: list[int] | None = None, **extra) -> Path:
+    torch.manual_seed(seed)
+    hidden = hidden or [16]
+    actor = Actor(OBS, ACT, hidden, "relu")
+    norm = RunningMeanStd(OBS, clip=5.0)
+    norm.update(torch.randn(50, OBS, dtype=torch.float64) * (1 + seed) + seed)
+    return export_policy_files(path, actor, norm, {"obs_dim": OBS, "act_dim": ACT, "actor_hidden": hidden,
+                                                   "activation": "relu", "trained_iterations": 100 + seed, **extra})
+
+
+def _tensors(path: Path) -> dict[str, torch.Tensor]:
+    return torch.load(path / "policy.pt", weights_only=True)
+
+
+def test_average_is_the_weighted_mean_of_every_tensor(tmp_path: Path) -> None:
+    a, b = _policy(tmp_path / "a", 0), _policy(tmp_path / "b", 1)
+    out = average_policies([a, b], tmp_path / "soup", [3.0, 1.0])
+    ta, tb, ts = _tensors(a), _tensors(b), _tensors(out)
+    assert set(ts) == set(ta)
+    for k in ta:
+        torch.testing.assert_close(ts[k].double(), 0.75 * ta[k].double() + 0.25 * tb[k].double())
+        assert ts[k].dtype == ta[k].dtype
+    cfg = json.loads((out / "config.json").read_text())
+    assert [s["weight"] for s in cfg["averaged_from"]] == [0.75, 0.25]
+    assert cfg["trained_iterations"] == 101 and "steering_trim" not in cfg
+    load_policy(out)  # verifies format and sha256
+
+
+def test_weight_one_reproduces_that_policy(tmp_path: Path) -> None:
+    a, b = _policy(tmp_path / "a", 0), _policy(tmp_path / "b", 1)
+    out = average_policies([a, b], tmp_path / "soup", [0.0, 1.0])
+    obs = np.random.default_rng(0).normal(size=(8, OBS)).astype(np.float32)
+    np.testing.assert_allclose(load_policy(out)(obs), load_policy(b)(obs), atol=1e-6)
+    # equal weights of two copies of one policy give that policy back
+    same = average_policies([a, a], tmp_path / "same")
+    np.testing.assert_allclose(load_policy(same)(obs), load_policy(a)(obs), atol=1e-6)
+
+
+def test_bad_inputs_are_rejected_with_the_reason(tmp_path: Path) -> None:
+    a, b = _policy(tmp_path / "a", 0), _policy(tmp_path / "b", 1)
+    wide = _policy(tmp_path / "wide", 2, hidden=[32])
+    with pytest.raises(ValueError, match="at least two"):
+        average_policies([a], tmp_path / "x")
+    with pytest.raises(ValueError, match="2 weights for 3"):
+        average_policies([a, b, a], tmp_path / "x", [1.0, 1.0])
+    with pytest.raises(ValueError, match="finite"):
+        average_policies([a, b], tmp_path / "x", [1.0, float("nan")])
+    with pytest.raises(ValueError, match="finite"):
+        average_policies([a, b], tmp_path / "x", [0.0, 0.0])
+    with pytest.raises(CheckpointError, match="actor_hidden"):
+        average_policies([a, wide], tmp_path / "x")
+    sym = _policy(tmp_path / "sym", 3, symmetric=True)
+    with pytest.raises(CheckpointError, match="symmetric"):
+        average_policies([a, sym], tmp_path / "x")
+    (b / "policy.pt").write_bytes((b / "policy.pt").read_bytes()[:-8])  # corrupted weights
+    with pytest.raises(CheckpointError, match="sha256"):
+        average_policies([a, b], tmp_path / "x")
+    assert not (tmp_path / "x").exists()
+
+
+def test_cli_writes_the_soup_and_reports_bad_weights(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    a, b = _policy(tmp_path / "a", 0), _policy(tmp_path / "b", 1)
+    assert cli_main(["train", "amp-average", str(a), str(b), "--out", str(tmp_path / "soup")]) == 0
+    assert json.loads(capsys.readouterr().out)["policy"] == str(tmp_path / "soup")
+    with pytest.raises(SystemExit):
+        cli_main(["train", "amp-average", str(a), str(b), "--weights", "1,x", "--out", str(tmp_path / "y")])
+    assert "amp-average" in capsys.readouterr().err
