@@ -20,7 +20,7 @@
 #   device run:  SNAPSHOT_EVERY=40 STAGE=3 OBSTACLES=1 TRAIN_S=380 LIMIT_S=340 TRAIN_ARGS="..." bash scripts/device_train_amp.sh
 #
 # TRAINER=scenes: train in navzoo scenes instead of the patch env (python -m navzoo.rl.amp_joint train, from the
-# shipped training checkpoint in training/amp): WORKERS processes, each with N_ENVS copies x N_HUMANS pedestrians
+# shipped policy inside the training checkpoint in training/amp): WORKERS processes, each with N_ENVS copies x N_HUMANS pedestrians
 # of one scene of SCENES (comma-separated library scenes, one per worker in turn), no robots; STAGE, OBSTACLES,
 # RESET_DISC and RESUME_DIR do not apply. TRAIN_ARGS go to amp_joint train (e.g. --actor-lr, --disc-lr).
 # INIT_DIR=DIR starts the scene training from a checkpoint returned by an earlier call (its name, meta.json and

@@ -24,7 +24,7 @@ or every robot done). The pedestrians that fell are *terminated*; the others are
 bootstrapped from their last observation.
 
 ``python -m navzoo.rl.amp_joint train --out runs/amp_joint ...`` trains (resumable, Ctrl-C safe, starting
-from the shipped training checkpoint by default); ``... evaluate --policy DIR`` measures falls,
+by default from the shipped policy inside the committed training checkpoint, :func:`shipped_training_checkpoint`); ``... evaluate --policy DIR`` measures falls,
 contacts, path error and the robots' outcomes of an exported policy, or of the shipped one, with
 robots present. ``navzoo train joint --humans learn --set human_model=amp`` dispatches here.
 """
@@ -438,20 +438,29 @@ def _robot_policy(spec: str) -> Any:
 
 # ---------------------------------------------------------------------- the shipped starting point
 def shipped_training_checkpoint(dst: str | Path) -> Path:
-    """Assemble the committed training checkpoint of the shipped AMP policy (``training/amp``: its
-    ``state.pt`` split in parts, ``meta.json``) into ``dst/<name>/``; returns that checkpoint folder."""
+    """Assemble the training checkpoint to continue the shipped AMP policy from, in ``dst/shipped/<name>/``
+    (returned).
+
+    The committed checkpoint (``training/amp``: ``state.pt`` split in parts, ``meta.json``) is checkpoint
+    5174's. Since 2026-11-27 the shipped policy is a weight average of 5174 and two branches of it, which
+    has no checkpoint of its own, so the shipped policy's actor and observation normaliser are put into
+    5174's checkpoint (:func:`navzoo.agents.amp.checkpoint.checkpoint_with_policy`); the critic,
+    discriminator and optimisers are 5174's."""
     from navzoo.agents.amp import checkpoint as ckpt
+    from navzoo.agents.amp.pedestrian_policy import default_policy_dir
 
     parts = sorted(SHIPPED_STATE.glob("state.pt.part-*"))
     if not parts or not (SHIPPED_STATE / "meta.json").is_file():
         raise FileNotFoundError(f"{SHIPPED_STATE} holds no training checkpoint (state.pt.part-* and meta.json)")
     name = (SHIPPED_STATE / "name").read_text().strip()
-    out = Path(dst) / name
-    out.mkdir(parents=True, exist_ok=True)
-    with open(out / ckpt.STATE_FILE, "wb") as f:
+    raw = Path(dst) / "committed" / name
+    raw.mkdir(parents=True, exist_ok=True)
+    with open(raw / ckpt.STATE_FILE, "wb") as f:
         for part in parts:
             f.write(part.read_bytes())
-    shutil.copy(SHIPPED_STATE / "meta.json", out / ckpt.META_FILE)
+    shutil.copy(SHIPPED_STATE / "meta.json", raw / ckpt.META_FILE)
+    out = ckpt.checkpoint_with_policy(raw, default_policy_dir(), Path(dst) / "shipped")
+    shutil.rmtree(raw.parent, ignore_errors=True)
     return out
 
 
@@ -472,7 +481,7 @@ class AmpJointArgs:
     disc_lr: float = 2e-5
     device: str = "cpu"
     seed: int = 0
-    init: str = "shipped"  # "shipped" (the committed training checkpoint) or a checkpoint folder
+    init: str = "shipped"  # "shipped" (the shipped policy in the committed checkpoint) or a checkpoint folder
     time_limit_s: float | None = None
     ckpt_every: int = 10
     env: dict[str, Any] = field(default_factory=dict)

@@ -85,3 +85,48 @@ def test_cli_writes_the_soup_and_reports_bad_weights(tmp_path: Path, capsys: pyt
     with pytest.raises(SystemExit):
         cli_main(["train", "amp-average", str(a), str(b), "--weights", "1,x", "--out", str(tmp_path / "y")])
     assert "amp-average" in capsys.readouterr().err
+
+
+def _fake_checkpoint(root: Path, hidden: list[int] | None = None) -> Path:
+    from navzoo.agents.amp.checkpoint import save_checkpoint
+
+    torch.manual_seed(7)
+    actor = Actor(OBS, ACT, hidden or [16], "relu")
+    norm = RunningMeanStd(OBS, clip=5.0)
+    tensors = {"actor": actor.state_dict(), "obs_norm": norm.state_dict(),
+               "critic": {"w": torch.arange(6.0)}, "actor_opt": {"step": torch.tensor(3.0)}}
+    return save_checkpoint(root, 42, tensors, {"counters": {"global_step": 1000}, "config": {"x": 1}})
+
+
+def test_checkpoint_with_policy_swaps_only_the_actor_and_its_normaliser(tmp_path: Path) -> None:
+    from navzoo.agents.amp.checkpoint import checkpoint_with_policy, load_checkpoint
+
+    start = _fake_checkpoint(tmp_path / "ckpts")
+    pol = average_policies([_policy(tmp_path / "a", 0), _policy(tmp_path / "b", 1)], tmp_path / "soup")
+    out = checkpoint_with_policy(start, pol, tmp_path / "out")
+    assert out.name == "ckpt_00000042"
+    tensors, meta = load_checkpoint(out)  # verified: format and sha256
+    soup = _tensors(pol)
+    for k, v in tensors["actor"].items():
+        torch.testing.assert_close(v, soup[f"actor.{k}"])
+    for k, v in tensors["obs_norm"].items():
+        torch.testing.assert_close(v, soup[f"obs_norm.{k}"])
+    torch.testing.assert_close(tensors["critic"]["w"], torch.arange(6.0))
+    assert meta["counters"] == {"global_step": 1000} and meta["config"] == {"x": 1}
+    assert meta["actor_from_policy"]["weights_sha256"] == json.loads((pol / "config.json").read_text())["weights_sha256"]
+    # a policy of another architecture does not fit
+    wide = _policy(tmp_path / "wide", 2, hidden=[32])
+    with pytest.raises(CheckpointError, match="does not fit"):
+        checkpoint_with_policy(start, wide, tmp_path / "out2")
+
+
+def test_the_shipped_training_start_carries_the_shipped_policy(tmp_path: Path) -> None:
+    from navzoo.agents.amp.checkpoint import load_checkpoint
+    from navzoo.agents.amp.pedestrian_policy import default_policy_dir
+    from navzoo.rl.amp_joint import shipped_training_checkpoint
+
+    tensors, meta = load_checkpoint(shipped_training_checkpoint(tmp_path))
+    shipped = _tensors(default_policy_dir())
+    for k, v in tensors["actor"].items():
+        torch.testing.assert_close(v, shipped[f"actor.{k}"])
+    assert meta["actor_from_policy"]["checkpoint"] == "ckpt_00005174"

@@ -527,3 +527,36 @@ def average_policies(
         for p, wi, pol in zip(paths, w, policies, strict=True)
     ]
     return export_policy_files(out, actor.cpu(), obs_norm.cpu(), config)
+
+
+def checkpoint_with_policy(
+    ckpt_dir: str | os.PathLike[str],
+    policy_dir: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str],
+) -> Path:
+    """A copy of training checkpoint ``ckpt_dir`` whose actor and observation normaliser are those of the
+    exported policy ``policy_dir``; written as ``out_dir/ckpt_<iteration>`` (returned).
+
+    This is how training continues from a policy that has no training checkpoint of its own, such as a
+    weight average (:func:`average_policies`) of branches of ``ckpt_dir``: the critic, discriminator,
+    their normalisers, the optimisers, the replay sample and the counters stay those of ``ckpt_dir``.
+    Both inputs are verified (format, sha256); the policy's tensors must have the checkpoint actor's
+    names and shapes. The new meta records the policy under ``actor_from_policy``.
+    """
+    tensors, meta = load_checkpoint(ckpt_dir)
+    policy = load_policy(policy_dir)
+    for key, module in (("actor", policy.actor), ("obs_norm", policy.obs_norm)):
+        theirs = {k: v.detach().cpu() for k, v in module.state_dict().items()}
+        ours = tensors.get(key)
+        if not isinstance(ours, dict) or set(ours) != set(theirs) or any(
+                tuple(ours[k].shape) != tuple(theirs[k].shape) for k in theirs):
+            raise CheckpointError(
+                f"{policy_dir}: its {key} does not fit checkpoint {ckpt_dir} "
+                f"(tensor names or shapes differ); only a policy of the checkpoint's architecture can be put in"
+            )
+        tensors[key] = {k: v.to(ours[k].dtype).clone() for k, v in theirs.items()}
+    iteration = int(meta["iteration"])
+    meta = {k: v for k, v in meta.items() if k not in ("format", "version", "iteration", "state_sha256")}
+    meta["actor_from_policy"] = {"path": str(policy_dir), "weights_sha256": policy.config["weights_sha256"],
+                                 "checkpoint": Path(ckpt_dir).name}
+    return save_checkpoint(out_dir, iteration, tensors, meta, keep=1)
