@@ -507,16 +507,13 @@ def average_policies(
     for p, pol in zip(paths, policies, strict=True):
         if pol.config.get("symmetric"):
             raise CheckpointError(f"{p}: a symmetric policy cannot be averaged (its actor is mirrored at run time)")
-    actor_states = [pol.actor.state_dict() for pol in policies]
-    norm_states = [pol.obs_norm.state_dict() for pol in policies]
-    avg_actor = {k: sum(float(wi) * s[k].double() for wi, s in zip(w, actor_states, strict=True)).to(actor_states[0][k].dtype)
-                 for k in actor_states[0]}
-    avg_norm = {k: sum(float(wi) * s[k].double() for wi, s in zip(w, norm_states, strict=True)).to(norm_states[0][k].dtype)
-                for k in norm_states[0]}
-    actor = policies[0].actor
-    actor.load_state_dict(avg_actor)
-    obs_norm = policies[0].obs_norm
-    obs_norm.load_state_dict(avg_norm)
+    def weighted_mean(states: list[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
+        return {k: sum(float(wi) * s[k].double() for wi, s in zip(w, states, strict=True)).to(v.dtype)
+                for k, v in states[0].items()}
+
+    actor, obs_norm = policies[0].actor, policies[0].obs_norm
+    actor.load_state_dict(weighted_mean([pol.actor.state_dict() for pol in policies]))
+    obs_norm.load_state_dict(weighted_mean([pol.obs_norm.state_dict() for pol in policies]))
     config = {k: first[k] for k in ("obs_dim", "act_dim", "actor_hidden", "activation", "action_low", "action_high")
               if k in first}
     config["trained_iterations"] = max(int(pol.config.get("trained_iterations", 0)) for pol in policies)
