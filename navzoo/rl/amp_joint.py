@@ -53,6 +53,7 @@ __all__ = ["AmpJointArgs", "NavAmpVecEnv", "SubprocNavAmpVecEnv", "evaluate", "m
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 SHIPPED_STATE = REPO_ROOT / "training" / "amp"  # the committed training checkpoint of the shipped policy
+AMP_WINDOW = 2  # frames per discriminator input of the shipped controller
 
 
 def _pose(state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -109,7 +110,7 @@ class NavAmpVecEnv:
 
     def __init__(self, env_id: str, n_envs: int, n_humans: int, n_robots: int = 1, robot_policy: str = "orca",
                  seed: int = 0, env_overrides: dict[str, Any] | None = None, reference: Any = None,
-                 amp_window: int = 2, robot_learn: Any = None, log_dir: str | Path | None = None) -> None:
+                 amp_window: int = AMP_WINDOW, robot_learn: Any = None, log_dir: str | Path | None = None) -> None:
         import navzoo
         from navzoo.agents.amp.features import FEATURE_DIM
         from navzoo.agents.amp.path_env import PathTaskConfig, amp_obs_version
@@ -408,7 +409,7 @@ class SubprocNavAmpVecEnv(SubprocVecEnv):
                 raise ValueError("give the scenes either as scenes or as the 'scene' override, not both")
             scenes = _check_scenes(scenes)
         self.dt = 1.0 / AMP_CONTROL_HZ
-        self.window = 2
+        self.window = AMP_WINDOW  # the workers' NavAmpVecEnv default
         self.scenes = [scenes[w % len(scenes)] if scenes else overrides.get("scene") for w in range(int(workers))]
         makers = [partial(_nav_amp_env, env_id, int(n_envs), int(n_humans), int(n_robots), robot_policy,
                           int(seed) + 1009 * w, {**overrides, **({"scene": sc} if sc else {})})
