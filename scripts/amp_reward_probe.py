@@ -24,6 +24,9 @@ def probe(policy_dir: str, scenes: list[str], steps: int, people: int = 6, seed:
     from navzoo.rl.amp_joint import NavAmpVecEnv, stats_from_counters
 
     act = load_policy(policy_dir)
+    from navzoo.envs.config import AMP_CONTROL_HZ
+
+    dt = 1.0 / AMP_CONTROL_HZ
     reward_sum, reward_n, goals, counters = 0.0, 0, 0, []
     for k, scene in enumerate(scenes):
         env = NavAmpVecEnv("navzoo/Lobby-v0", 1, people, 0, seed=seed + k, env_overrides={**(overrides or {}), "scene": scene})
@@ -41,8 +44,8 @@ def probe(policy_dir: str, scenes: list[str], steps: int, people: int = 6, seed:
             counters.append(env.counters())
         finally:
             env.close()
-    stats = stats_from_counters(counters, 1.0 / 30.0)
-    minutes = stats["pedestrian_steps"] / 30.0 / 60.0
+    stats = stats_from_counters(counters, dt)
+    minutes = stats["pedestrian_steps"] * dt / 60.0
     return {"policy": policy_dir, "mean_reward_per_step": reward_sum / reward_n, "goals": goals,
             "goals_per_pedestrian_minute": goals / minutes, "pedestrian_minutes": minutes,
             **{k: stats[k] for k in ("falls", "agent_contact_share", "map_contact_share", "path_error_m")}}
