@@ -22,7 +22,8 @@ Four measurements of the shipped AMP controller (``policies/amp_pedestrian``), a
   pedestrian, policy inference included) for 1-64 pedestrians.
 
 It also writes a video of an AMP crowd (``--video``). ``--quick`` runs a reduced version with the same
-keys in a few minutes.
+keys in a few minutes. ``--seeds 0,1,2,3`` runs the following protocol once per seed (one seed moves its
+success rate by several points) and adds each seed's rates and their spread.
 """
 
 from __future__ import annotations
@@ -218,7 +219,8 @@ def _one_thread() -> None:
 def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: int = 0,
               policy_dir: str | None = None, workers: int = 1, crowd_model: str = "sfm",
               human_model: str = "amp", pose_every: int = 1,
-              people: list[int] | None = None) -> tuple[dict[str, Any], np.ndarray]:
+              people: list[int] | None = None,
+              seeds: list[int] | None = None) -> tuple[dict[str, Any], np.ndarray]:
     """Trip outcomes of AMP pedestrians in ``scenes`` (3-15 people, one process per scene with
     ``workers`` > 1); returns (metrics, poses (M, 45) of the standing pedestrians, for realism).
 
@@ -227,6 +229,12 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
     changes with kinematic bodies. ``path_error_m`` is None where no scene has a target trajectory
     (kinematic pedestrians of a rule-based crowd). ``pose_every=0`` records no poses. ``people``: the
     number of pedestrians of each scene (default :func:`people_per_scene`).
+
+    ``seeds`` (instead of ``seed``) runs every scene once per seed, all (scene, seed) runs in one pool.
+    The rates are then pooled over the trips of all seeds; ``by_seed`` has each seed's own rates and
+    ``success_rate_seed_sd`` their spread (sample standard deviation), since one seed moves the success
+    rate by several points. Scene rows carry their ``seed``. The poses returned are the first seed's
+    (realism is then measured on the same poses as a single-seed run of that seed).
     """
     if crowd_model not in ("sfm", "orca", "orca_rvo2", "diffusion"):
         raise ValueError(f"crowd_model must be 'sfm', 'orca', 'orca_rvo2' or 'diffusion', got {crowd_model!r}")
@@ -235,13 +243,48 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
     counts = people_per_scene(len(scenes)) if people is None else list(people)
     if len(counts) != len(scenes):
         raise ValueError(f"need one people count per scene, got {len(counts)} for {len(scenes)} scenes")
-    jobs = [(sc, n, seconds, seed, policy_dir) for sc, n in zip(scenes, counts, strict=True)]
-    if (crowd_model, human_model, pose_every) != ("sfm", "amp", 1):
-        jobs = [j + (pose_every, 20_000, crowd_model, human_model) for j in jobs]
+    if seeds is None:
+        jobs = [(sc, n, seconds, seed, policy_dir) for sc, n in zip(scenes, counts, strict=True)]
+        if (crowd_model, human_model, pose_every) != ("sfm", "amp", 1):
+            jobs = [j + (pose_every, 20_000, crowd_model, human_model) for j in jobs]
+        rows = _pool_map(follow_scene, jobs, workers)
+        return _following_metrics(rows, seconds), np.concatenate([r["poses"] for r in rows])
+    seeds = check_seeds(seeds)
+    jobs = [(sc, n, seconds, sd, policy_dir, pose_every if k == 0 else 0, 20_000, crowd_model, human_model)
+            for k, sd in enumerate(seeds) for sc, n in zip(scenes, counts, strict=True)]
     rows = _pool_map(follow_scene, jobs, workers)
+    for job, row in zip(jobs, rows, strict=True):
+        row["seed"] = job[3]
+    metrics = _following_metrics(rows, seconds)
+    per_seed = [_following_metrics([r for r in rows if r["seed"] == sd], seconds) for sd in seeds]
+    metrics["seeds"] = list(seeds)
+    metrics["by_seed"] = [{"seed": sd, **{k: m[k] for k in _SEED_KEYS}} for sd, m in zip(seeds, per_seed, strict=True)]
+    rates = [m["success_rate"] for m in per_seed]
+    metrics["success_rate_seed_sd"] = float(np.std(rates, ddof=1)) if len(rates) > 1 else None
+    return metrics, np.concatenate([r["poses"] for r in rows if r["seed"] == seeds[0]])
+
+
+_SEED_KEYS = ("success_rate", "goal_rate", "fall_rate", "map_collision_rate", "agent_collision_rate", "path_error_m",
+              "timeout_rate", "trips")
+
+
+def check_seeds(seeds: Any) -> list[int]:
+    """A non-empty list of distinct integer seeds, or a ValueError that names the problem."""
+    out = list(seeds)
+    if not out:
+        raise ValueError("seeds must name at least one seed")
+    if not all(isinstance(s, int | np.integer) and not isinstance(s, bool) for s in out):
+        raise ValueError(f"seeds must be integers, got {out!r}")
+    if len(set(out)) != len(out):
+        raise ValueError(f"seeds must be distinct, got {out!r}")
+    return [int(s) for s in out]
+
+
+def _following_metrics(rows: list[dict[str, Any]], seconds: float) -> dict[str, Any]:
+    """Trip rates pooled over ``rows`` of :func:`follow_scene`."""
     n_trips = sum(r["success"] + r["off_path"] + r["fall"] + r["timeout"] for r in rows)
     total = max(1, n_trips)
-    metrics = {
+    return {
         "success_rate": sum(r["success"] for r in rows) / total,
         "goal_rate": sum(r["success"] + r["off_path"] for r in rows) / total,
         "fall_rate": sum(r["fall"] for r in rows) / total,
@@ -253,10 +296,9 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
         "trips": n_trips,
         "trips_running": sum(r["running"] for r in rows),
         "seconds_per_scene": seconds,
-        "scenes": [{k: r[k] for k in ("scene", "pedestrians", "success", "off_path", "fall", "timeout", "map_trips",
-                                      "agent_trips", "wall_s")} for r in rows],
+        "scenes": [{k: r[k] for k in ("seed", "scene", "pedestrians", "success", "off_path", "fall", "timeout",
+                                      "map_trips", "agent_trips", "wall_s") if k in r} for r in rows],
     }
-    return metrics, np.concatenate([r["poses"] for r in rows])
 
 
 def _kinematic_scene(scene: str, n: int, seconds: float, seed: int, max_poses: int) -> np.ndarray:
@@ -329,8 +371,15 @@ def record_video(path: str | Path, scene: str = "lobby", n: int = 12, seconds: f
 
 
 def evaluate(quick: bool = False, motions: str | None = None, policy_dir: str | None = None, seed: int = 0,
-             video: str | None = None, with_throughput: bool = True, workers: int = 1) -> dict[str, Any]:
+             video: str | None = None, with_throughput: bool = True, workers: int = 1,
+             seeds: list[int] | None = None) -> dict[str, Any]:
+    """All four measurements (module docstring). ``seeds`` runs the following protocol once per seed
+    (:func:`following`); realism then uses the first seed, as ``seed`` does otherwise."""
     from navzoo.agents.amp.tracking import load_motions, track_clips
+
+    if seeds is not None:
+        seeds = check_seeds(seeds)
+        seed = seeds[0]
 
     t0 = time.time()
     scenes = ("lobby", "corridor") if quick else SCENES
@@ -340,7 +389,7 @@ def evaluate(quick: bool = False, motions: str | None = None, policy_dir: str | 
     track = track_clips(motions=lib, max_seconds=4.0 if quick else None, **kwargs)
     tracking = {k: track[k] for k in ("mean_pos_error_m", "max_pos_error_m", "mean_rot_error_rad", "clip_success_rate",
                                       "worst_pos_error_m", "fall_rate", "n_clips")}
-    follow, amp_poses = following(scenes, seconds, seed, policy_dir, workers=workers)
+    follow, amp_poses = following(scenes, seconds, seed, policy_dir, workers=workers, seeds=seeds)
     ref = realism.RealismReference.fit(realism.clip_poses(lib), seed=seed)
     kin_poses = kinematic_poses(scenes, seconds, seed, workers=workers)
     keys = ("coverage_k50", "entropy_k50", "dist_k50", "coverage_k100", "entropy_k100", "dist_k100", "mmd")
@@ -385,11 +434,23 @@ def markdown(result: dict[str, Any]) -> str:
     fo = result["following"]
     lines.append(f"| goal_rate / timeout_rate | {f(fo['goal_rate'])} / {f(fo['timeout_rate'])} | |")
     lines.append(f"| trips (running at the end) | {fo['trips']} ({fo['trips_running']}) | |")
-    lines += ["", "| scene | pedestrians | success | off path | fall | timeout | map contact | agent contact |",
-              "|---|---|---|---|---|---|---|---|"]
+    if "by_seed" in fo:
+        sd = fo["success_rate_seed_sd"]
+        lines.append(f"| seeds (success sd between seeds) | {', '.join(map(str, fo['seeds']))} "
+                     f"({'n/a' if sd is None else f(sd)}) | |")
+        lines += ["", "| seed | trips | success | goal | fall | map contact | agent contact | path error (m) | timeout |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for r in fo["by_seed"]:
+            lines.append(f"| {r['seed']} | {r['trips']} | {f(r['success_rate'])} | {f(r['goal_rate'])} | "
+                         f"{f(r['fall_rate'])} | {f(r['map_collision_rate'])} | {f(r['agent_collision_rate'])} | "
+                         f"{f(r['path_error_m'])} | {f(r['timeout_rate'])} |")
+    seeded = any("seed" in r for r in fo["scenes"])
+    lines += ["", "| scene | " + ("seed | " if seeded else "") + "pedestrians | success | off path | fall | timeout | "
+              "map contact | agent contact |", "|---" * (9 if seeded else 8) + "|"]
     for r in fo["scenes"]:
-        lines.append(f"| {r['scene']} | {r['pedestrians']} | {r['success']} | {r['off_path']} | {r['fall']} | "
-                     f"{r['timeout']} | {r['map_trips']} | {r['agent_trips']} |")
+        lines.append(f"| {r['scene']} | " + (f"{r['seed']} | " if seeded else "") + f"{r['pedestrians']} | "
+                     f"{r['success']} | {r['off_path']} | {r['fall']} | {r['timeout']} | {r['map_trips']} | "
+                     f"{r['agent_trips']} |")
     keys = ("coverage_k50", "entropy_k50", "dist_k50", "coverage_k100", "entropy_k100", "dist_k100", "mmd",
             "n_generated")
     lines += ["", "| realism | " + " | ".join(keys) + " |", "|---" * (len(keys) + 1) + "|"]
@@ -414,7 +475,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="reduced run (2 scenes x 20 s, clips capped at 4 s)")
     parser.add_argument("--motions", default=None, help="folder of reference clips (default: packaged locomotion)")
     parser.add_argument("--policy", default=None, help="exported AMP policy folder (default: the shipped one)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=None, help="seed of the scenes (default 0)")
+    parser.add_argument("--seeds", default=None, metavar="S1,S2,...",
+                        help="run the following protocol once per seed (e.g. 0,1,2,3) and report the rates pooled "
+                             "over the seeds, each seed's rates and their spread; realism uses the first seed")
     parser.add_argument("--video", default=None, help="also write an mp4 of an AMP crowd here")
     parser.add_argument("--no-throughput", action="store_true")
     parser.add_argument("--workers", type=int, default=1, help="processes for the scenes of the following run")
@@ -428,8 +492,16 @@ def run_cli(args: argparse.Namespace) -> int:
     if args.markdown:
         print(markdown(json.loads(Path(args.markdown).read_text())))
         return 0
-    result = evaluate(args.quick, args.motions, args.policy, args.seed, args.video, not args.no_throughput,
-                      args.workers)
+    if args.seeds is not None and args.seed is not None:
+        raise SystemExit("navzoo eval pedestrians: give --seed or --seeds, not both")
+    seeds = None
+    if args.seeds is not None:
+        try:
+            seeds = check_seeds([int(x) for x in args.seeds.split(",")])
+        except ValueError as e:
+            raise SystemExit(f"navzoo eval pedestrians: --seeds {args.seeds!r}: {e}") from None
+    result = evaluate(args.quick, args.motions, args.policy, 0 if args.seed is None else args.seed, args.video,
+                      not args.no_throughput, args.workers, seeds=seeds)
     text = json.dumps(result, indent=None if args.json else 2, default=float)
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
