@@ -30,6 +30,7 @@ python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .
 export PYTHONPATH=/tmp/site:$PWD
 nproc; nvidia-smi --query-gpu=name,memory.total --format=csv,noheader
 python3 -c "import navzoo, torch, pybullet; print('navzoo ok, cuda', torch.cuda.is_available(), torch.__version__)"
+rm -rf /tmp/amp /tmp/amp_init  # a warm machine keeps /tmp: never mix an earlier call's run into this one
 RESUME_DIR=${RESUME_DIR:-training/amp}
 TRAINER=${TRAINER:-path}
 mkdir -p /tmp/amp/checkpoints
