@@ -189,6 +189,7 @@ def test_eval_pedestrians_cli_quick(tmp_path):
         assert set(res["realism"][model]) >= {"coverage_k50", "entropy_k50", "coverage_k100", "entropy_k100", "mmd"}
         assert 0.0 < res["realism"][model]["coverage_k50"] <= 1.0
     assert 0.0 <= res["following"]["success_rate"] <= 1.0
+    assert not (tmp_path / "ped.json.following.jsonl").exists()  # the resume file goes once the result is written
 
 
 def test_the_optional_progress_reward_pays_for_walking_toward_the_path_and_changes_nothing_else():

@@ -45,3 +45,33 @@ def test_several_seeds_pool_the_trips_and_keep_each_seeds_own_rates():
                           for m in ("amp", "kinematic")} | {"reference_mmd_floor": 0.0}}
     text = pedestrians.markdown(result)
     assert "| seed | trips | success |" in text and "| station | 1 | 3 |" in text
+
+
+def _timeless(metrics):
+    """Following metrics without the scenes' wall-clock seconds (the only field a rerun changes)."""
+    return metrics | {"scenes": [{k: v for k, v in r.items() if k != "wall_s"} for r in metrics["scenes"]]}
+
+
+def test_an_interrupted_following_run_resumes_where_it_stopped(tmp_path, monkeypatch):
+    kw = dict(scenes=("station",), seconds=20.0, people=[3], seeds=[0, 1])
+    whole, whole_poses = pedestrians.following(**kw)
+    rows_file = tmp_path / "ped.json.following.jsonl"
+    first, _ = pedestrians.following(resume=rows_file, **kw)
+    assert _timeless(first) == _timeless(whole)
+    lines = rows_file.read_text().splitlines()
+    assert len(lines) == 3 and "settings" in lines[0]
+    rows_file.write_text("\n".join(lines[:2]) + '\n{"scene": "stat')  # killed after one run, mid-line
+    calls = []
+    real = pedestrians.follow_scene
+    monkeypatch.setattr(pedestrians, "follow_scene", lambda *a: calls.append(a) or real(*a))
+    resumed, poses = pedestrians.following(resume=rows_file, **kw)
+    assert [c[3] for c in calls] == [1]  # only seed 1 ran again
+    assert _timeless(resumed) == _timeless(whole)
+    np.testing.assert_array_equal(poses, whole_poses)  # the first seed's poses came back from the file
+    with pytest.raises(ValueError, match="other settings \\(seconds\\)"):
+        pedestrians.following(resume=rows_file, **(kw | {"seconds": 10.0}))
+    (tmp_path / "other.jsonl").write_text('{"rows": 1}\n')
+    with pytest.raises(ValueError, match="no settings line"):
+        pedestrians.following(resume=tmp_path / "other.jsonl", **kw)
+    pedestrians._remove_resume_files(rows_file)
+    assert not rows_file.exists() and not (tmp_path / "ped.json.following.jsonl.poses").exists()

@@ -220,7 +220,8 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
               policy_dir: str | None = None, workers: int = 1, crowd_model: str = "sfm",
               human_model: str = "amp", pose_every: int = 1,
               people: list[int] | None = None,
-              seeds: list[int] | None = None) -> tuple[dict[str, Any], np.ndarray]:
+              seeds: list[int] | None = None,
+              resume: str | Path | None = None) -> tuple[dict[str, Any], np.ndarray]:
     """Trip outcomes of AMP pedestrians in ``scenes`` (3-15 people, one process per scene with
     ``workers`` > 1); returns (metrics, poses (M, 45) of the standing pedestrians, for realism).
 
@@ -235,6 +236,10 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
     ``success_rate_seed_sd`` their spread (sample standard deviation), since one seed moves the success
     rate by several points. Scene rows carry their ``seed``. The poses returned are the first seed's
     (realism is then measured on the same poses as a single-seed run of that seed).
+
+    ``resume``: a JSON-lines file that keeps every finished (scene, seed) run as it ends (its poses in
+    ``<resume>.poses/``). Rerun with the same settings, the runs found there are not run again; a file
+    of other settings is refused. :func:`evaluate` uses ``<out>.following.jsonl`` and removes it when done.
     """
     if crowd_model not in ("sfm", "orca", "orca_rvo2", "diffusion"):
         raise ValueError(f"crowd_model must be 'sfm', 'orca', 'orca_rvo2' or 'diffusion', got {crowd_model!r}")
@@ -247,12 +252,14 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
         jobs = [(sc, n, seconds, seed, policy_dir) for sc, n in zip(scenes, counts, strict=True)]
         if (crowd_model, human_model, pose_every) != ("sfm", "amp", 1):
             jobs = [j + (pose_every, 20_000, crowd_model, human_model) for j in jobs]
-        rows = _pool_map(follow_scene, jobs, workers)
+        rows = _run_jobs(jobs, workers, resume, _settings(scenes, counts, seconds, [seed], policy_dir, crowd_model,
+                                                          human_model, pose_every))
         return _following_metrics(rows, seconds), np.concatenate([r["poses"] for r in rows])
     seeds = check_seeds(seeds)
     jobs = [(sc, n, seconds, sd, policy_dir, pose_every if k == 0 else 0, 20_000, crowd_model, human_model)
             for k, sd in enumerate(seeds) for sc, n in zip(scenes, counts, strict=True)]
-    rows = _pool_map(follow_scene, jobs, workers)
+    rows = _run_jobs(jobs, workers, resume, _settings(scenes, counts, seconds, seeds, policy_dir, crowd_model,
+                                                      human_model, pose_every) | {"multi_seed": True})
     for job, row in zip(jobs, rows, strict=True):
         row["seed"] = job[3]
     metrics = _following_metrics(rows, seconds)
@@ -262,6 +269,93 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
     rates = [m["success_rate"] for m in per_seed]
     metrics["success_rate_seed_sd"] = float(np.std(rates, ddof=1)) if len(rates) > 1 else None
     return metrics, np.concatenate([r["poses"] for r in rows if r["seed"] == seeds[0]])
+
+
+def _settings(scenes, counts, seconds, seeds, policy_dir, crowd_model, human_model, pose_every) -> dict[str, Any]:
+    """What a resumed following run must share with the interrupted one (the policy by its config's hash:
+    weights sha256 and steering trim)."""
+    import hashlib
+
+    from navzoo.agents.amp.pedestrian_policy import default_policy_dir
+
+    policy = None
+    if human_model == "amp":
+        config = Path(policy_dir or default_policy_dir()) / "config.json"
+        policy = hashlib.sha256(config.read_bytes()).hexdigest() if config.is_file() else str(policy_dir)
+    return {"scenes": list(scenes), "people": [int(n) for n in counts], "seconds": float(seconds),
+            "seeds": [int(s) for s in seeds], "policy_config_sha256": policy, "crowd_model": crowd_model,
+            "human_model": human_model, "pose_every": int(pose_every)}
+
+
+def _follow_job(indexed: tuple[int, tuple]) -> tuple[int, dict[str, Any]]:
+    return indexed[0], follow_scene(*indexed[1])
+
+
+def _run_jobs(jobs: list[tuple], workers: int, resume: str | Path | None, settings: dict[str, Any]) -> list[dict]:
+    """:func:`follow_scene` over ``jobs`` (rows in job order); with ``resume``, finished rows are kept in
+    that file as they end and read back instead of being run again (see :func:`following`)."""
+    if resume is None:
+        return _pool_map(follow_scene, jobs, workers)
+    resume = Path(resume)
+    poses_dir = resume.with_name(resume.name + ".poses")
+    done: dict[tuple, dict[str, Any]] = {}
+    if resume.exists():
+        lines = resume.read_text().splitlines()
+        good = []
+        for line in lines:
+            try:
+                good.append(json.loads(line))
+            except json.JSONDecodeError:  # a run killed while writing its last line
+                break
+        if not good or "settings" not in good[0]:
+            raise ValueError(f"{resume} is not a following-run file of navzoo eval pedestrians (no settings line); "
+                             "use another --out or delete it")
+        if good[0]["settings"] != settings:
+            diff = sorted(k for k in settings.keys() | good[0]["settings"].keys()
+                          if settings.get(k) != good[0]["settings"].get(k))
+            raise ValueError(f"{resume} holds an interrupted run with other settings ({', '.join(diff)}); rerun with "
+                             "the same settings to resume it, or use another --out (or delete the file)")
+        for row in good[1:]:
+            f = poses_dir / f"{row['scene']}_{row['pedestrians']}_seed{row['job_seed']}.npy"
+            if f.is_file():
+                done[(row["scene"], row["pedestrians"], row["job_seed"])] = row | {"poses": np.load(f)}
+        resume.write_text("".join(json.dumps(r) + "\n" for r in good[:1] + [
+            r for r in good[1:] if (r["scene"], r["pedestrians"], r["job_seed"]) in done]))
+    else:
+        resume.parent.mkdir(parents=True, exist_ok=True)
+        resume.write_text(json.dumps({"settings": settings}) + "\n")
+    poses_dir.mkdir(parents=True, exist_ok=True)
+    keys = [(j[0], j[1], j[3]) for j in jobs]
+    todo = [(i, j) for i, (k, j) in enumerate(zip(keys, jobs, strict=True)) if k not in done]
+    if done:
+        print(f"following: resuming {resume}: {len(jobs) - len(todo)} of {len(jobs)} runs already done",
+              file=sys.stderr, flush=True)
+
+    def keep(i: int, row: dict[str, Any]) -> None:
+        sc, n, sd = keys[i]
+        np.save(poses_dir / f"{sc}_{n}_seed{sd}.npy", row["poses"])  # before its line: a listed row has its poses
+        with resume.open("a") as fh:
+            fh.write(json.dumps({k: v for k, v in row.items() if k != "poses"} | {"job_seed": sd},
+                                default=lambda v: v.item() if isinstance(v, np.generic) else str(v)) + "\n")
+        done[keys[i]] = row | {"job_seed": sd}
+
+    if workers <= 1 or len(todo) <= 1:
+        for i, job in todo:
+            keep(i, follow_scene(*job))
+    else:
+        import multiprocessing as mp
+
+        with mp.get_context("spawn").Pool(min(workers, len(todo)), initializer=_one_thread) as pool:
+            for i, row in pool.imap_unordered(_follow_job, todo):
+                keep(i, row)
+    return [{k: v for k, v in done[k_].items() if k != "job_seed"} for k_ in keys]
+
+
+def _remove_resume_files(resume: Path) -> None:
+    import shutil
+
+    resume.unlink(missing_ok=True)
+    shutil.rmtree(resume.with_name(resume.name + ".poses"), ignore_errors=True)
 
 
 _SEED_KEYS = ("success_rate", "goal_rate", "fall_rate", "map_collision_rate", "agent_collision_rate", "path_error_m",
@@ -372,9 +466,12 @@ def record_video(path: str | Path, scene: str = "lobby", n: int = 12, seconds: f
 
 def evaluate(quick: bool = False, motions: str | None = None, policy_dir: str | None = None, seed: int = 0,
              video: str | None = None, with_throughput: bool = True, workers: int = 1,
-             seeds: list[int] | None = None) -> dict[str, Any]:
+             seeds: list[int] | None = None, out_file: str | Path | None = None) -> dict[str, Any]:
     """All four measurements (module docstring). ``seeds`` runs the following protocol once per seed
-    (:func:`following`); realism then uses the first seed, as ``seed`` does otherwise."""
+    (:func:`following`); realism then uses the first seed, as ``seed`` does otherwise. With ``out_file``
+    (the CLI's ``--out``) the result is written there, and until then the following runs are kept in
+    ``<out_file>.following.jsonl`` as they end, so that an interrupted evaluation rerun with the same
+    settings resumes there; that file goes once the result is written."""
     from navzoo.agents.amp.tracking import load_motions, track_clips
 
     if seeds is not None:
@@ -389,7 +486,8 @@ def evaluate(quick: bool = False, motions: str | None = None, policy_dir: str | 
     track = track_clips(motions=lib, max_seconds=4.0 if quick else None, **kwargs)
     tracking = {k: track[k] for k in ("mean_pos_error_m", "max_pos_error_m", "mean_rot_error_rad", "clip_success_rate",
                                       "worst_pos_error_m", "fall_rate", "n_clips")}
-    follow, amp_poses = following(scenes, seconds, seed, policy_dir, workers=workers, seeds=seeds)
+    resume = Path(str(out_file) + ".following.jsonl") if out_file else None
+    follow, amp_poses = following(scenes, seconds, seed, policy_dir, workers=workers, seeds=seeds, resume=resume)
     ref = realism.RealismReference.fit(realism.clip_poses(lib), seed=seed)
     kin_poses = kinematic_poses(scenes, seconds, seed, workers=workers)
     keys = ("coverage_k50", "entropy_k50", "dist_k50", "coverage_k100", "entropy_k100", "dist_k100", "mmd")
@@ -408,6 +506,10 @@ def evaluate(quick: bool = False, motions: str | None = None, policy_dir: str | 
         out["video"] = str(record_video(video, policy_dir=policy_dir, seconds=6.0 if quick else 12.0))
     out["quick"] = quick
     out["wall_s"] = round(time.time() - t0, 1)
+    if out_file:
+        Path(out_file).parent.mkdir(parents=True, exist_ok=True)
+        Path(out_file).write_text(json.dumps(out, default=float) + "\n")
+        _remove_resume_files(resume)
     return out
 
 
@@ -482,7 +584,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--video", default=None, help="also write an mp4 of an AMP crowd here")
     parser.add_argument("--no-throughput", action="store_true")
     parser.add_argument("--workers", type=int, default=1, help="processes for the scenes of the following run")
-    parser.add_argument("--out", default=None, help="also write the JSON result to this file")
+    parser.add_argument("--out", default=None,
+                        help="also write the JSON result to this file; an interrupted run rerun with the same "
+                             "--out and settings resumes its following runs (kept in OUT.following.jsonl until done)")
     parser.add_argument("--json", action="store_true", help="print JSON")
     parser.add_argument("--markdown", default=None, metavar="RESULT_JSON",
                         help="print Markdown tables of an earlier result (--out file) and exit")
@@ -501,7 +605,7 @@ def run_cli(args: argparse.Namespace) -> int:
         except ValueError as e:
             raise SystemExit(f"navzoo eval pedestrians: --seeds {args.seeds!r}: {e}") from None
     result = evaluate(args.quick, args.motions, args.policy, 0 if args.seed is None else args.seed, args.video,
-                      not args.no_throughput, args.workers, seeds=seeds)
+                      not args.no_throughput, args.workers, seeds=seeds, out_file=args.out)
     text = json.dumps(result, indent=None if args.json else 2, default=float)
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
