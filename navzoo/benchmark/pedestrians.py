@@ -203,10 +203,15 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
 def _pool_map(fn, jobs: list[tuple], workers: int) -> list[Any]:
     if workers <= 1 or len(jobs) <= 1:
         return [fn(*j) for j in jobs]
+    with _pool(workers, len(jobs)) as pool:
+        return pool.starmap(fn, jobs)
+
+
+def _pool(workers: int, n_jobs: int):
+    """A spawn pool of ``min(workers, n_jobs)`` single-threaded worker processes."""
     import multiprocessing as mp
 
-    with mp.get_context("spawn").Pool(min(workers, len(jobs)), initializer=_one_thread) as pool:
-        return pool.starmap(fn, jobs)
+    return mp.get_context("spawn").Pool(min(workers, n_jobs), initializer=_one_thread)
 
 
 def _one_thread() -> None:
@@ -343,9 +348,7 @@ def _run_jobs(jobs: list[tuple], workers: int, resume: str | Path | None, settin
         for i, job in todo:
             keep(i, follow_scene(*job))
     else:
-        import multiprocessing as mp
-
-        with mp.get_context("spawn").Pool(min(workers, len(todo)), initializer=_one_thread) as pool:
+        with _pool(workers, len(todo)) as pool:
             for i, row in pool.imap_unordered(_follow_job, todo):
                 keep(i, row)
     return [{k: v for k, v in done[k_].items() if k != "job_seed"} for k_ in keys]
@@ -606,11 +609,7 @@ def run_cli(args: argparse.Namespace) -> int:
             raise SystemExit(f"navzoo eval pedestrians: --seeds {args.seeds!r}: {e}") from None
     result = evaluate(args.quick, args.motions, args.policy, 0 if args.seed is None else args.seed, args.video,
                       not args.no_throughput, args.workers, seeds=seeds, out_file=args.out)
-    text = json.dumps(result, indent=None if args.json else 2, default=float)
-    if args.out:
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(text + "\n")
-    print(text)
+    print(json.dumps(result, indent=None if args.json else 2, default=float))  # evaluate wrote --out
     return 0
 
 
