@@ -179,3 +179,23 @@ def test_cost_timings_run_small():
     assert step["diffusion_step_ms"] > 0 and step["sfm_step_ms"] > 0 and step["diffusion_over_sfm"] > 0
     md = ce.markdown({"cost": {"replan_cpu": rows, "step": step}})
     assert "cpu replan (ms)" in md and "Env step (lobby" in md
+
+
+def test_reliability_rows_over_several_seeds_resume_their_scene_runs(tmp_path, monkeypatch):
+    kw = dict(rows=["sfm+kinematic"], scenes=["station"], seconds=10.0, people=[3])
+    whole = ce.reliability(seeds=[0, 1], **kw)["sfm+kinematic"]
+    assert whole["seeds"] == [0, 1] and [r["seed"] for r in whole["by_seed"]] == [0, 1]
+    assert whole["trips"] == sum(r["trips"] for r in whole["by_seed"])
+    prefix = tmp_path / "crowd.json"
+    ce.reliability(seeds=[0, 1], resume_prefix=prefix, **kw)
+    kept = ce.row_resume_file(prefix, "sfm+kinematic")
+    assert len(kept.read_text().splitlines()) == 3  # settings + one line per (scene, seed) run
+    real = ce.pedestrians.follow_scene
+    monkeypatch.setattr(ce.pedestrians, "follow_scene", lambda *a: pytest.fail(f"ran {a[:4]} again"))
+    again = ce.reliability(seeds=[0, 1], resume_prefix=prefix, **kw)["sfm+kinematic"]
+    assert again["by_seed"] == whole["by_seed"]
+    monkeypatch.setattr(ce.pedestrians, "follow_scene", real)
+    text = ce.markdown({"reliability": {"sfm+kinematic": again}})
+    assert "| sfm+kinematic, seed 1 |" in text
+    with pytest.raises(SystemExit, match="not both"):
+        ce.main(["--seed", "2", "--seeds", "0,1"])

@@ -73,5 +73,5 @@ def test_an_interrupted_following_run_resumes_where_it_stopped(tmp_path, monkeyp
     (tmp_path / "other.jsonl").write_text('{"rows": 1}\n')
     with pytest.raises(ValueError, match="no settings line"):
         pedestrians.following(resume=tmp_path / "other.jsonl", **kw)
-    pedestrians._remove_resume_files(rows_file)
+    pedestrians.remove_resume_files(rows_file)
     assert not rows_file.exists() and not (tmp_path / "ped.json.following.jsonl.poses").exists()

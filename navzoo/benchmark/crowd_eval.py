@@ -73,7 +73,7 @@ __all__ = [
     "BINS", "CROWDS", "OVERLAP_M", "PAPER_RELIABILITY", "RELIABILITY_ROWS", "STEP",
     "resample", "continuous_pieces", "trim_still_start", "kinematics", "track_kinematics",
     "collision_share", "distribution_distance", "real_data", "crowd_scene", "realism", "reliability",
-    "replan_cost", "step_cost", "cost", "evaluate", "markdown", "main", "add_arguments", "run_cli",
+    "replan_cost", "step_cost", "cost", "evaluate", "markdown", "main", "add_arguments", "run_cli", "row_resume_file",
 ]
 
 #: Crowd models this evaluation can run (``NavConfig.crowd_model``).
@@ -394,10 +394,14 @@ def realism(crowds: Sequence[str] = DEFAULT_CROWDS, scenes: Sequence[str] = pede
 # ---------------------------------------------------------------------------------------- reliability
 def reliability(rows: Sequence[str] = tuple(RELIABILITY_ROWS), scenes: Sequence[str] = pedestrians.SCENES,
                 seconds: float = 200.0, seed: int = 0, workers: int = 1, policy_dir: str | None = None,
-                people: Sequence[int] | None = None, on_row=None) -> dict[str, Any]:
+                people: Sequence[int] | None = None, on_row=None, seeds: Sequence[int] | None = None,
+                resume_prefix: str | Path | None = None) -> dict[str, Any]:
     """The reliability table: :func:`navzoo.benchmark.pedestrians.following` for each row of
     :data:`RELIABILITY_ROWS` named in ``rows`` (``people`` per scene, default 3-15 spread over
-    ``scenes``; ``seconds`` each). ``on_row(rows_so_far)`` is called after each row (to save them)."""
+    ``scenes``; ``seconds`` each). ``on_row(rows_so_far)`` is called after each row (to save them).
+    ``seeds`` (instead of ``seed``): every row over several seeds (rates pooled, ``by_seed`` per seed).
+    ``resume_prefix``: each row keeps its finished scene runs in ``<prefix>.<row>.following.jsonl``,
+    so that an interrupted table rerun with the same settings resumes there (the caller removes them)."""
     scenes = _check_scenes(scenes)
     bad = [r for r in rows if r not in RELIABILITY_ROWS]
     if bad:
@@ -408,7 +412,9 @@ def reliability(rows: Sequence[str] = tuple(RELIABILITY_ROWS), scenes: Sequence[
         t0 = time.time()
         metrics, _ = pedestrians.following(scenes, seconds, seed, policy_dir, workers=workers, crowd_model=crowd,
                                            human_model=body, pose_every=0,
-                                           people=None if people is None else list(people))
+                                           people=None if people is None else list(people),
+                                           seeds=None if seeds is None else list(seeds),
+                                           resume=None if resume_prefix is None else row_resume_file(resume_prefix, name))
         metrics.update({"crowd_model": crowd, "human_model": body, "wall_s": round(time.time() - t0, 1)})
         if body == "kinematic":
             metrics["notes"] = ("kinematic bodies: no falls; contacts geometric (centre within the body radius "
@@ -421,6 +427,11 @@ def reliability(rows: Sequence[str] = tuple(RELIABILITY_ROWS), scenes: Sequence[
         if on_row is not None:
             on_row(out)
     return out
+
+
+def row_resume_file(prefix: str | Path, row: str) -> Path:
+    """Where :func:`reliability` keeps the finished scene runs of ``row`` while it runs."""
+    return Path(f"{prefix}.{row.replace('+', '_')}.following.jsonl")
 
 
 # ---------------------------------------------------------------------------------------- cost
@@ -544,12 +555,14 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
              amp: bool = True, with_cost: bool = True, workers: int = 1, seed: int = 0,
              scenes: Sequence[str] | None = None, people: int | None = None, data_dir: str | Path | None = None,
              policy_dir: str | None = None, out: str | Path | None = None,
-             rows: Sequence[str] | None = None) -> dict[str, Any]:
+             rows: Sequence[str] | None = None, seeds: Sequence[int] | None = None) -> dict[str, Any]:
     """Realism, reliability and cost (see the module doc). ``quick``: 2 scenes x 20 s, fewer timing
     repeats. ``people`` fixes the number of pedestrians in every scene (default 3-15 over the scenes).
     ``rows``: the reliability rows to run (default all of :data:`RELIABILITY_ROWS`).
     With ``out`` the result so far is written there after each part and each reliability row
-    (``"partial": true`` until done)."""
+    (``"partial": true`` until done), and the reliability rows resume their finished scene runs when an
+    interrupted evaluation is rerun with the same settings (:func:`reliability`). ``seeds``: the
+    reliability rows over several seeds (the realism part uses the first)."""
     t0 = time.time()
     crowds = _check_crowds(crowds)
     scenes = _check_scenes(scenes if scenes is not None else (QUICK_SCENES if quick else pedestrians.SCENES))
@@ -560,6 +573,9 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
         raise ValueError(f"workers must be >= 1, got {workers!r}")
     if people is not None and people < 1:
         raise ValueError(f"people must be >= 1, got {people!r}")
+    if seeds is not None:
+        seeds = pedestrians.check_seeds(seeds)
+        seed = seeds[0]
     rows = list(RELIABILITY_ROWS if rows is None else rows)
     bad = [r for r in rows if r not in RELIABILITY_ROWS]
     if bad:  # checked before the realism part, which runs for minutes
@@ -582,12 +598,16 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
         result["reliability"] = dict(so_far)
         save(True)
 
-    result["reliability"] = reliability(rows, scenes, seconds, seed, workers, policy_dir, counts, row_done)
+    result["reliability"] = reliability(rows, scenes, seconds, seed, workers, policy_dir, counts, row_done, seeds=seeds,
+                                        resume_prefix=out)
     result["reliability_paper"] = PAPER_RELIABILITY
     save(True)
     if with_cost:
         result["cost"] = cost(quick)
     save(False)
+    if out:
+        for name in rows:
+            pedestrians.remove_resume_files(row_resume_file(out, name))
     return result
 
 
@@ -638,6 +658,10 @@ def markdown(result: dict[str, Any]) -> str:
         for name, row in rel.items():
             pct = [f(100 * row[k], 2) if row.get(k) is not None else "n/a" for k in keys[:4]]
             lines.append(f"| {name} | " + " | ".join(pct) + f" | {f(row.get('path_error_m'))} | {row.get('trips')} |")
+            for r in row.get("by_seed", []):  # rows over several seeds: each seed under the pooled row
+                pct = [f(100 * r[k], 2) if r.get(k) is not None else "n/a" for k in keys[:4]]
+                lines.append(f"| {name}, seed {r['seed']} | " + " | ".join(pct) +
+                             f" | {f(r.get('path_error_m'))} | {r.get('trips')} |")
         for name, row in result.get("reliability_paper", PAPER_RELIABILITY).items():
             pct = [f(100 * row[k], 2) for k in keys[:4]]
             lines.append(f"| paper {name} | " + " | ".join(pct) + f" | {f(row['path_error_m'])} | |")
@@ -681,7 +705,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="scenes, comma-separated (default the 8 of the pedestrian evaluation; quick: lobby,corridor)")
     parser.add_argument("--people", type=int, default=None,
                         help="pedestrians in every scene (default 3-15 spread over the scenes)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=None, help="seed of the scenes (default 0)")
+    parser.add_argument("--seeds", default=None, metavar="S1,S2,...",
+                        help="the reliability rows over several seeds (rates pooled, each seed's rates and their "
+                             "spread); the realism part uses the first")
     parser.add_argument("--no-amp", action="store_true", help="skip the AMP rows of the reliability table")
     parser.add_argument("--rows", type=_names, default=None,
                         help=f"reliability rows to run, comma-separated, of {', '.join(RELIABILITY_ROWS)} (default all)")
@@ -696,9 +723,11 @@ def run_cli(args: argparse.Namespace) -> int:
     if args.markdown:
         print(markdown(json.loads(Path(args.markdown).read_text())))
         return 0
+    seeds = pedestrians.seeds_option("navzoo eval crowd", args.seed, args.seeds)
     result = evaluate(args.quick, args.seconds, args.crowds, amp=not args.no_amp, with_cost=not args.no_cost,
-                      workers=args.workers, seed=args.seed, scenes=args.scenes, people=args.people,
-                      data_dir=args.data, policy_dir=args.policy, out=args.out, rows=args.rows)
+                      workers=args.workers, seed=0 if args.seed is None else args.seed, scenes=args.scenes,
+                      people=args.people, data_dir=args.data, policy_dir=args.policy, out=args.out, rows=args.rows,
+                      seeds=seeds)
     print(json.dumps(result, indent=None if args.json else 2, default=_json_default))
     return 0
 

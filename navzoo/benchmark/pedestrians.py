@@ -354,7 +354,7 @@ def _run_jobs(jobs: list[tuple], workers: int, resume: str | Path | None, settin
     return [{k: v for k, v in done[k_].items() if k != "job_seed"} for k_ in keys]
 
 
-def _remove_resume_files(resume: Path) -> None:
+def remove_resume_files(resume: Path) -> None:
     import shutil
 
     resume.unlink(missing_ok=True)
@@ -375,6 +375,19 @@ def check_seeds(seeds: Any) -> list[int]:
     if len(set(out)) != len(out):
         raise ValueError(f"seeds must be distinct, got {out!r}")
     return [int(s) for s in out]
+
+
+def seeds_option(prog: str, seed: int | None, seeds: str | None) -> list[int] | None:
+    """The seeds of a ``--seed S`` / ``--seeds S1,S2,...`` command-line pair (None: one seed), or a
+    SystemExit naming the problem."""
+    if seeds is None:
+        return None
+    if seed is not None:
+        raise SystemExit(f"{prog}: give --seed or --seeds, not both")
+    try:
+        return check_seeds([int(x) for x in seeds.split(",")])
+    except ValueError as e:
+        raise SystemExit(f"{prog}: --seeds {seeds!r}: {e}") from None
 
 
 def _following_metrics(rows: list[dict[str, Any]], seconds: float) -> dict[str, Any]:
@@ -512,7 +525,7 @@ def evaluate(quick: bool = False, motions: str | None = None, policy_dir: str | 
     if out_file:
         Path(out_file).parent.mkdir(parents=True, exist_ok=True)
         Path(out_file).write_text(json.dumps(out, default=float) + "\n")
-        _remove_resume_files(resume)
+        remove_resume_files(resume)
     return out
 
 
@@ -599,14 +612,7 @@ def run_cli(args: argparse.Namespace) -> int:
     if args.markdown:
         print(markdown(json.loads(Path(args.markdown).read_text())))
         return 0
-    if args.seeds is not None and args.seed is not None:
-        raise SystemExit("navzoo eval pedestrians: give --seed or --seeds, not both")
-    seeds = None
-    if args.seeds is not None:
-        try:
-            seeds = check_seeds([int(x) for x in args.seeds.split(",")])
-        except ValueError as e:
-            raise SystemExit(f"navzoo eval pedestrians: --seeds {args.seeds!r}: {e}") from None
+    seeds = seeds_option("navzoo eval pedestrians", args.seed, args.seeds)
     result = evaluate(args.quick, args.motions, args.policy, 0 if args.seed is None else args.seed, args.video,
                       not args.no_throughput, args.workers, seeds=seeds, out_file=args.out)
     print(json.dumps(result, indent=None if args.json else 2, default=float))  # evaluate wrote --out
