@@ -132,25 +132,30 @@ def test_pedestrian_policy_can_override_the_trim(tmp_path: Path) -> None:
 
 
 def test_config_trim_is_not_applied_to_the_crowd_models_it_names(tmp_path: Path) -> None:
-    """The shipped trim is off in diffusion crowds (measured harmful there), on in social-force ones;
-    an explicit trim applies in both; a malformed list is refused naming the config."""
+    """A config trim is off in the crowds its list names and on in the others (the shipped average lists
+    none since its trim was measured on diffusion targets too); an explicit trim applies everywhere; a
+    malformed list is refused naming the config."""
     from navzoo.agents.amp.pedestrian_policy import AmpPedestrianPolicy
     from navzoo.envs.nav_env import NavEnv
 
+    listed = AmpPedestrianPolicy(_policy(tmp_path / "a", steering_trim={"rad": 0.1, "off_for_crowd_models": ["diffusion"]}))
     shipped = AmpPedestrianPolicy()
     trim = shipped.policy.steering_trim
-    assert trim > 0 and "diffusion" in shipped.policy.config["steering_trim"]["off_for_crowd_models"]
+    assert trim > 0 and shipped.policy.config["steering_trim"]["off_for_crowd_models"] == []
     envs = {m: NavEnv(scene="lobby", n_robots=0, n_humans=1, human_model="amp", crowd_model=m)
             for m in ("diffusion", "sfm")}
-    for model, want in (("diffusion", 0.0), ("sfm", trim), ("diffusion", 0.0)):
+    for model, want in (("diffusion", 0.0), ("sfm", 0.1), ("diffusion", 0.0)):
+        listed.reset(envs[model])
+        assert listed.policy.steering_trim == want, model
+    for model in ("diffusion", "sfm"):
         shipped.reset(envs[model])
-        assert shipped.policy.steering_trim == want, model
+        assert shipped.policy.steering_trim == trim, model
     explicit = AmpPedestrianPolicy(steering_trim=0.05)
     explicit.reset(envs["diffusion"])
     assert explicit.policy.steering_trim == 0.05
     for env in envs.values():
         env.close()
-    pol = _policy(tmp_path, steering_trim={"rad": 0.1, "off_for_crowd_models": "diffusion"})
+    pol = _policy(tmp_path / "b", steering_trim={"rad": 0.1, "off_for_crowd_models": "diffusion"})
     with pytest.raises(ValueError, match="off_for_crowd_models must be a list"):
         AmpPedestrianPolicy(pol)
 
