@@ -75,3 +75,23 @@ def test_an_interrupted_following_run_resumes_where_it_stopped(tmp_path, monkeyp
         pedestrians.following(resume=tmp_path / "other.jsonl", **kw)
     pedestrians.remove_resume_files(rows_file)
     assert not rows_file.exists() and not (tmp_path / "ped.json.following.jsonl.poses").exists()
+
+
+def test_a_resumed_run_must_use_the_same_models(tmp_path, monkeypatch):
+    """The settings a resume checks name the AMP policy and, for diffusion crowds, the diffusion model."""
+    import shutil
+
+    from navzoo.agents.diffusion.crowd import default_model_dir
+
+    args = (("station",), [3], 20.0, [0], None)
+    base = pedestrians._settings(*args, "diffusion", "amp", 1)
+    assert base["policy_config_sha256"] and base["diffusion_config_sha256"]
+    assert "diffusion_config_sha256" not in pedestrians._settings(*args, "sfm", "amp", 1)
+    assert pedestrians._settings(*args, "sfm", "kinematic", 1)["policy_config_sha256"] is None
+    other = tmp_path / "diffusion"
+    shutil.copytree(default_model_dir(), other, ignore=shutil.ignore_patterns("*.md", "*.pt"))
+    (other / "config.json").write_text((other / "config.json").read_text().replace("{", '{"retrained": 1, ', 1))
+    monkeypatch.setenv("NAVZOO_DIFFUSION_MODEL", str(other))
+    changed = pedestrians._settings(*args, "diffusion", "amp", 1)
+    assert changed["diffusion_config_sha256"] != base["diffusion_config_sha256"]
+    assert {k for k in base if base[k] != changed[k]} == {"diffusion_config_sha256"}

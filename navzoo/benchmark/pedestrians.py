@@ -277,19 +277,26 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
 
 
 def _settings(scenes, counts, seconds, seeds, policy_dir, crowd_model, human_model, pose_every) -> dict[str, Any]:
-    """What a resumed following run must share with the interrupted one (the policy by its config's hash:
-    weights sha256 and steering trim)."""
+    """What a resumed following run must share with the interrupted one (the AMP policy and the diffusion
+    model by the hash of their config files, which hold their weights' sha256 and the steering trim)."""
+    from navzoo.agents.amp.pedestrian_policy import default_policy_dir
+    from navzoo.agents.diffusion.crowd import default_model_dir
+
+    out = {"scenes": list(scenes), "people": [int(n) for n in counts], "seconds": float(seconds),
+           "seeds": [int(s) for s in seeds], "policy_config_sha256": None, "crowd_model": crowd_model,
+           "human_model": human_model, "pose_every": int(pose_every)}
+    if human_model == "amp":
+        out["policy_config_sha256"] = _config_sha256(Path(policy_dir or default_policy_dir()))
+    if crowd_model == "diffusion":
+        out["diffusion_config_sha256"] = _config_sha256(default_model_dir())
+    return out
+
+
+def _config_sha256(model_dir: Path) -> str:
     import hashlib
 
-    from navzoo.agents.amp.pedestrian_policy import default_policy_dir
-
-    policy = None
-    if human_model == "amp":
-        config = Path(policy_dir or default_policy_dir()) / "config.json"
-        policy = hashlib.sha256(config.read_bytes()).hexdigest() if config.is_file() else str(policy_dir)
-    return {"scenes": list(scenes), "people": [int(n) for n in counts], "seconds": float(seconds),
-            "seeds": [int(s) for s in seeds], "policy_config_sha256": policy, "crowd_model": crowd_model,
-            "human_model": human_model, "pose_every": int(pose_every)}
+    config = model_dir / "config.json"
+    return hashlib.sha256(config.read_bytes()).hexdigest() if config.is_file() else str(model_dir)
 
 
 def _follow_job(indexed: tuple[int, tuple]) -> tuple[int, dict[str, Any]]:
