@@ -253,18 +253,14 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
     counts = people_per_scene(len(scenes)) if people is None else list(people)
     if len(counts) != len(scenes):
         raise ValueError(f"need one people count per scene, got {len(counts)} for {len(scenes)} scenes")
-    if seeds is None:
-        jobs = [(sc, n, seconds, seed, policy_dir) for sc, n in zip(scenes, counts, strict=True)]
-        if (crowd_model, human_model, pose_every) != ("sfm", "amp", 1):
-            jobs = [j + (pose_every, 20_000, crowd_model, human_model) for j in jobs]
-        rows = _run_jobs(jobs, workers, resume, _settings(scenes, counts, seconds, [seed], policy_dir, crowd_model,
-                                                          human_model, pose_every))
-        return _following_metrics(rows, seconds), np.concatenate([r["poses"] for r in rows])
-    seeds = check_seeds(seeds)
+    run_seeds = [seed] if seeds is None else check_seeds(seeds)
     jobs = [(sc, n, seconds, sd, policy_dir, pose_every if k == 0 else 0, 20_000, crowd_model, human_model)
-            for k, sd in enumerate(seeds) for sc, n in zip(scenes, counts, strict=True)]
-    rows = _run_jobs(jobs, workers, resume, _settings(scenes, counts, seconds, seeds, policy_dir, crowd_model,
-                                                      human_model, pose_every) | {"multi_seed": True})
+            for k, sd in enumerate(run_seeds) for sc, n in zip(scenes, counts, strict=True)]
+    settings = _settings(scenes, counts, seconds, run_seeds, policy_dir, crowd_model, human_model, pose_every)
+    rows = _run_jobs(jobs, workers, resume, settings if seeds is None else settings | {"multi_seed": True})
+    if seeds is None:
+        return _following_metrics(rows, seconds), np.concatenate([r["poses"] for r in rows])
+    seeds = run_seeds
     for job, row in zip(jobs, rows, strict=True):
         row["seed"] = job[3]
     metrics = _following_metrics(rows, seconds)
