@@ -325,6 +325,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                          "0 = skip")
     ap.add_argument("--keep-trim", action="store_true",
                     help="apply the policy config's steering trim (training had none)")
+    ap.add_argument("--velocity-span", type=int, default=1,
+                    help="control steps the velocity features span (PathTaskConfig.amp_velocity_span); not 1: --ckpt ''")
     ap.add_argument("--top", type=int, default=25)
     ap.add_argument("--no-probes", action="store_true", help="skip the linear probes on feature groups")
     ap.add_argument("--json", default=None, help="write everything here")
@@ -343,7 +345,11 @@ def main(argv: list[str] | None = None) -> int:
     task = PathTaskConfig(stage=args.stage, pd_mode="motor", obstacle_obs=rays,
                           boxes_per_patch=4 if rays and args.stage == 3 else 0,
                           pair_patches=rays and args.stage == 3, door_prob=args.door_prob,
-                          replan_sync=bool(args.replan_sync), amp_velocity="finite_difference")
+                          replan_sync=bool(args.replan_sync), amp_velocity="finite_difference",
+                          amp_velocity_span=args.velocity_span)
+    if args.velocity_span != 1 and args.ckpt:
+        raise SystemExit(f"--velocity-span {args.velocity_span}: the checkpoint's discriminator read one-step "
+                         "velocities; run with --ckpt '' (feature AUCs and linear probes only)")
     reference = grounded_locomotion_reference()
     hz = task.control_hz
     warmup = int(round(args.warmup * hz))

@@ -22,7 +22,8 @@
 # TRAINER=scenes: train in navzoo scenes instead of the patch env (python -m navzoo.rl.amp_joint train, from the
 # shipped policy inside the training checkpoint in training/amp): WORKERS processes, each with N_ENVS copies x N_HUMANS pedestrians
 # of one scene of SCENES (comma-separated library scenes, one per worker in turn), no robots; STAGE, OBSTACLES,
-# RESET_DISC and RESUME_DIR do not apply. TRAIN_ARGS go to amp_joint train (e.g. --actor-lr, --disc-lr).
+# RESET_DISC and RESUME_DIR do not apply. TRAIN_ARGS go to amp_joint train (e.g. --actor-lr, --disc-lr; a fresh
+# discriminator is --reset-disc there, e.g. with --amp-velocity-span 4).
 # INIT_DIR=DIR starts the scene training from a checkpoint returned by an earlier call (its name, meta.json and
 # state.pt.part-* files) instead of the shipped one; training/amp is then not needed and can stay behind.
 set -u

@@ -56,12 +56,6 @@ SHIPPED_STATE = REPO_ROOT / "training" / "amp"  # the committed training checkpo
 AMP_WINDOW = 2  # frames per discriminator input of the shipped controller
 
 
-def _pose(state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """A copy of the pose fields of a ``read_state()`` dict: what the next frame's finite-difference
-    velocities (:func:`navzoo.agents.amp.features.finite_difference_velocities`) start from."""
-    return {key: np.array(state[key], copy=True) for key in ("root_pos", "root_quat", "sph", "rev")}
-
-
 def stats_from_counters(counters: Sequence[dict[str, Any]], dt: float) -> dict[str, float]:
     """:meth:`NavAmpVecEnv.stats` of the summed ``counters`` of one or more envs (e.g. of every worker)."""
     s = {k: sum(c[k] for c in counters) for k in counters[0]}
@@ -97,6 +91,8 @@ class NavAmpVecEnv:
         env_overrides: further NavConfig fields (``crowd_model``, ``time_limit``, ...).
         reference: the style reference (default: the controller's training reference).
         amp_window: frames per discriminator input (the shipped controller's: 2).
+        amp_velocity_span: control steps that the discriminator's finite-difference velocities span
+            (:class:`navzoo.agents.amp.features.PoseHistory`; the shipped controller's: 1).
         robot_learn: robots learn with this :class:`~navzoo.rl.stepped_ppo.RobotLearnConfig` (then
             ``robot_policy`` is not used); None: they are frozen on ``robot_policy``.
         log_dir: the learning robots' TensorBoard and ``robot_metrics.jsonl``.
@@ -110,16 +106,17 @@ class NavAmpVecEnv:
 
     def __init__(self, env_id: str, n_envs: int, n_humans: int, n_robots: int = 1, robot_policy: str = "orca",
                  seed: int = 0, env_overrides: dict[str, Any] | None = None, reference: Any = None,
-                 amp_window: int = AMP_WINDOW, robot_learn: Any = None, log_dir: str | Path | None = None) -> None:
+                 amp_window: int = AMP_WINDOW, robot_learn: Any = None, log_dir: str | Path | None = None,
+                 amp_velocity_span: int = 1) -> None:
         import navzoo
-        from navzoo.agents.amp.features import FEATURE_DIM
-        from navzoo.agents.amp.path_env import PathTaskConfig, amp_obs_version
+        from navzoo.agents.amp.features import FEATURE_DIM, PoseHistory
+        from navzoo.agents.amp.path_env import amp_obs_version
         from navzoo.agents.amp.sim import ACTION_DIM
         from navzoo.agents.amp.train import grounded_locomotion_reference
         from navzoo.envs.config import AMP_CONTROL_HZ
 
         for name, v, lo in (("n_envs", n_envs, 1), ("n_humans", n_humans, 1), ("n_robots", n_robots, 0),
-                            ("amp_window", amp_window, 1)):
+                            ("amp_window", amp_window, 1), ("amp_velocity_span", amp_velocity_span, 1)):
             if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < lo:
                 raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
         overrides = dict(env_overrides or {})
@@ -138,7 +135,8 @@ class NavAmpVecEnv:
         self.window = int(amp_window)
         self.amp_obs_dim = self.window * int(FEATURE_DIM)
         self.reference = reference if reference is not None else grounded_locomotion_reference()
-        self.amp_obs_version = amp_obs_version(PathTaskConfig(amp_velocity="finite_difference"), self.reference)
+        self.span = int(amp_velocity_span)
+        self.amp_obs_version = amp_obs_version(_task(self.span), self.reference)
         self.robots = list(env0.possible_agents[:self.n_robots])
         self.robot_learner = None
         if robot_learn is not None:
@@ -168,7 +166,7 @@ class NavAmpVecEnv:
         self.seed = int(seed)
         self._episodes = np.zeros(self.n_copies, dtype=np.int64)
         self._robot_obs: list[dict[str, Any]] = [{} for _ in self.envs]
-        self._prev: list[dict[str, np.ndarray]] = [{} for _ in self.envs]
+        self._history = [PoseHistory(self.n_humans, self.span) for _ in self.envs]
         self._window = np.zeros((self.num_envs, self.window, FEATURE_DIM), dtype=np.float32)
         self._obs = np.zeros((self.num_envs, self.obs_dim), dtype=np.float32)
         self.reset_stats()
@@ -205,7 +203,7 @@ class NavAmpVecEnv:
         self._robot_obs[k] = {a: o for a, o in obs.items() if a.startswith("robot_")}
         self._obs[self._rows(k)] = np.stack([np.asarray(obs[a], np.float32) for a in self.humans])
         state = env.amp.state()
-        self._prev[k] = _pose(state)
+        self._history[k].reset(state)
         # The first frame has no predecessor: standing bodies, zero velocities (as the path env's standing starts).
         self._window[self._rows(k)] = amp_features(state)[:, None, :]
 
@@ -224,7 +222,7 @@ class NavAmpVecEnv:
 
     # ------------------------------------------------------------------ step
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        from navzoo.agents.amp.features import amp_features, finite_difference_velocities
+        from navzoo.agents.amp.features import amp_features
 
         a = np.asarray(actions, dtype=np.float32)
         if a.shape != (self.num_envs, self.act_dim) or not np.isfinite(a).all():
@@ -253,8 +251,7 @@ class NavAmpVecEnv:
                     acts.update(self.robot_policies[k].act(live, env))
             obs, rew, term, trunc, info = env.step(acts)
             state = env.amp.state()
-            feats = amp_features(finite_difference_velocities(self._prev[k], state, self.dt))
-            self._prev[k] = _pose(state)
+            feats = amp_features(self._history[k].velocities(state, self.dt))
             win = np.roll(self._window[rows], -1, axis=1)
             win[:, -1] = feats
             self._window[rows] = win
@@ -354,22 +351,32 @@ class NavAmpVecEnv:
         self._tick = 0
 
     def sample_reference_amp_obs(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        return _reference_windows(self.reference, self.window, self.dt, n, rng)
+        return _reference_windows(self.reference, self.window, self.dt, n, rng, self.span)
 
     def close(self) -> None:
         for env in self.envs:
             env.close()
 
 
-def _reference_windows(reference: Any, window: int, dt: float, n: int, rng: np.random.Generator) -> np.ndarray:
+def _task(span: int) -> Any:
+    """The path-task settings whose discriminator inputs the navzoo-scene trainer shares (for
+    :func:`~navzoo.agents.amp.path_env.amp_obs_version`)."""
+    from navzoo.agents.amp.path_env import PathTaskConfig
+
+    return PathTaskConfig(amp_velocity="finite_difference", amp_velocity_span=int(span))
+
+
+def _reference_windows(reference: Any, window: int, dt: float, n: int, rng: np.random.Generator,
+                       span: int = 1) -> np.ndarray:
     from navzoo.agents.amp.path_env import reference_amp_windows
 
-    return reference_amp_windows(reference, n, rng, window, dt, "finite_difference")
+    return reference_amp_windows(reference, n, rng, window, dt, "finite_difference", span)
 
 
 def _nav_amp_env(env_id: str, n_envs: int, n_humans: int, n_robots: int, robot_policy: str, seed: int,
-                 env_overrides: dict[str, Any]) -> NavAmpVecEnv:
-    return NavAmpVecEnv(env_id, n_envs, n_humans, n_robots, robot_policy, seed, env_overrides)
+                 env_overrides: dict[str, Any], span: int = 1) -> NavAmpVecEnv:
+    return NavAmpVecEnv(env_id, n_envs, n_humans, n_robots, robot_policy, seed, env_overrides,
+                        amp_velocity_span=span)
 
 
 def _check_scenes(scenes: Sequence[str]) -> list[str]:
@@ -396,8 +403,8 @@ class SubprocNavAmpVecEnv(SubprocVecEnv):
 
     def __init__(self, env_id: str, n_envs: int, n_humans: int, n_robots: int = 0, robot_policy: str = "orca",
                  seed: int = 0, env_overrides: dict[str, Any] | None = None, workers: int = 2,
-                 scenes: Sequence[str] | None = None) -> None:
-        from navzoo.agents.amp.path_env import PathTaskConfig, amp_obs_version
+                 scenes: Sequence[str] | None = None, amp_velocity_span: int = 1) -> None:
+        from navzoo.agents.amp.path_env import amp_obs_version
         from navzoo.agents.amp.train import grounded_locomotion_reference
         from navzoo.envs.config import AMP_CONTROL_HZ
 
@@ -410,13 +417,14 @@ class SubprocNavAmpVecEnv(SubprocVecEnv):
             scenes = _check_scenes(scenes)
         self.dt = 1.0 / AMP_CONTROL_HZ
         self.window = AMP_WINDOW  # the workers' NavAmpVecEnv default
+        self.span = int(amp_velocity_span)
         self.scenes = [scenes[w % len(scenes)] if scenes else overrides.get("scene") for w in range(int(workers))]
         makers = [partial(_nav_amp_env, env_id, int(n_envs), int(n_humans), int(n_robots), robot_policy,
-                          int(seed) + 1009 * w, {**overrides, **({"scene": sc} if sc else {})})
+                          int(seed) + 1009 * w, {**overrides, **({"scene": sc} if sc else {})}, self.span)
                   for w, sc in enumerate(self.scenes)]
         reference = grounded_locomotion_reference()
-        super().__init__(makers, partial(_reference_windows, reference, self.window, self.dt),
-                         amp_obs_version(PathTaskConfig(amp_velocity="finite_difference"), reference))
+        super().__init__(makers, partial(_reference_windows, reference, self.window, self.dt, span=self.span),
+                         amp_obs_version(_task(self.span), reference))
 
     def stats(self) -> dict[str, float]:
         return stats_from_counters(self.counters(), self.dt)
@@ -492,6 +500,11 @@ class AmpJointArgs:
     scenes: list[str] | None = None  # library scene names, one per worker in turn (None: env_id's scene)
     snapshot_every: int = 0  # > 0: export the policy every that many iterations (and at the start) to out/snapshots
     keep_checkpoints: int | None = None  # None: the start checkpoint's setting
+    # the discriminator's finite-difference velocities span this many control steps (features.PoseHistory;
+    # the shipped controller: 1); another span than the start checkpoint's needs reset_disc
+    amp_velocity_span: int = 1
+    # start from args.init with a fresh discriminator (weights, optimiser, input normaliser, replay buffer)
+    reset_disc: bool = False
 
 
 def _learner_config(args: AmpJointArgs, saved: dict[str, Any]):
@@ -522,7 +535,8 @@ def train(args: AmpJointArgs) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     saved_args = out / "amp_joint_args.json"
     mine = dataclasses.asdict(args)
-    fixed = ("env_id", "n_envs", "n_humans", "n_robots", "robot_policy", "init", "env", "workers", "scenes")
+    fixed = ("env_id", "n_envs", "n_humans", "n_robots", "robot_policy", "init", "env", "workers", "scenes",
+             "amp_velocity_span", "reset_disc")
     robot_cfg = None
     if args.robot_learn is not None:
         from navzoo.rl.stepped_ppo import RobotLearnConfig
@@ -557,15 +571,16 @@ def train(args: AmpJointArgs) -> dict[str, Any]:
         env: Any
         if args.workers > 1 or args.scenes:
             env = SubprocNavAmpVecEnv(args.env_id, args.n_envs, args.n_humans, args.n_robots, args.robot_policy,
-                                      args.seed, args.env, workers=args.workers, scenes=args.scenes)
+                                      args.seed, args.env, workers=args.workers, scenes=args.scenes,
+                                      amp_velocity_span=args.amp_velocity_span)
         else:
             env = NavAmpVecEnv(args.env_id, args.n_envs, args.n_humans, args.n_robots, args.robot_policy, args.seed,
-                               args.env, robot_learn=robot_cfg, log_dir=out)
+                               args.env, robot_learn=robot_cfg, log_dir=out, amp_velocity_span=args.amp_velocity_span)
         try:
             learner = AmpLearner(env, _learner_config(args, meta.get("config") or {}), device=args.device)
             resumed = ckpt.latest_checkpoint(out / "checkpoints") is not None
             if not resumed:
-                learner.load_checkpoint(start, any_num_envs=True)
+                learner.load_checkpoint(start, any_num_envs=True, reset_disc=bool(args.reset_disc))
             start_step = int(meta["counters"]["global_step"])
             t0 = time.time()
             result = learner.train(start_step + args.steps, log_dir=out, ckpt_dir=out / "checkpoints",
@@ -649,6 +664,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     tr.add_argument("--snapshot-every", type=int, default=0,
                     help="export the policy to OUT/snapshots every N iterations and at the start (0: off)")
     tr.add_argument("--keep-checkpoints", type=int, default=None, help="training checkpoints to keep")
+    tr.add_argument("--amp-velocity-span", type=int, default=1, metavar="STEPS",
+                    help="control steps the discriminator's velocities span (1: the shipped controller's inputs; "
+                         "another value needs --reset-disc)")
+    tr.add_argument("--reset-disc", action="store_true",
+                    help="start from --init with a fresh discriminator (weights, optimiser, normaliser, replay)")
     rl = tr.add_argument_group("learning robots (--robots learn: SB3 PPO with the transformer, stepped in the same worlds)")
     rl.add_argument("--robots", choices=["frozen", "learn"], default="frozen",
                     help="frozen (on --robot-policy) or learning at the same time as the pedestrians")
@@ -676,6 +696,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                                 time_limit_s=a.time_limit_s, ckpt_every=a.ckpt_every, env=env,
                                 workers=a.workers, scenes=a.scenes.split(",") if a.scenes else None,
                                 snapshot_every=a.snapshot_every, keep_checkpoints=a.keep_checkpoints,
+                                amp_velocity_span=a.amp_velocity_span, reset_disc=a.reset_disc,
                                 robot_learn=None if a.robots == "frozen" else {
                                     "init_from": a.robot_init, "lr": a.robot_lr, "n_steps": a.robot_n_steps,
                                     "n_epochs": a.robot_epochs, "batch_size": a.robot_batch_size,

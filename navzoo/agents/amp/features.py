@@ -325,7 +325,7 @@ def amp_features(state: dict[str, np.ndarray]) -> np.ndarray:
 AMP_VELOCITY_MODES: tuple[str, ...] = ("finite_difference", "physics")
 
 
-def finite_difference_velocities(prev: dict[str, np.ndarray], cur: dict[str, np.ndarray], dt: float
+def finite_difference_velocities(prev: dict[str, np.ndarray], cur: dict[str, np.ndarray], dt: float | np.ndarray
                                  ) -> dict[str, np.ndarray]:
     """``cur`` (a ``read_state()``-like dict) with its four velocity fields replaced by backward
     differences from ``prev`` over ``dt`` (same conventions as the simulator and the motion library):
@@ -336,15 +336,66 @@ def finite_difference_velocities(prev: dict[str, np.ndarray], cur: dict[str, np.
     sides' velocities mean the same thing: the motion between two control steps. (The simulator's
     instantaneous velocities do not: torque-limited position motors reach a new target within the
     first physics substep and report near-zero joint velocities at the end of the control step.)
+    ``dt`` may also be an array (N,): one time step per body (:class:`PoseHistory`).
     """
+    dt = np.asarray(dt, dtype=np.float64)
+
+    def per(x: np.ndarray) -> np.ndarray:
+        return x / dt.reshape(dt.shape + (1,) * (x.ndim - dt.ndim))
+
     out = dict(cur)
-    out["root_lin_vel"] = (np.asarray(cur["root_pos"], np.float64) - np.asarray(prev["root_pos"], np.float64)) / dt
-    out["root_ang_vel"] = quat_to_rotvec(quat_mul(np.asarray(cur["root_quat"], np.float64),
-                                                  quat_conj(np.asarray(prev["root_quat"], np.float64)))) / dt
-    out["sph_vel"] = quat_to_rotvec(quat_mul(quat_conj(np.asarray(prev["sph"], np.float64)),
-                                             np.asarray(cur["sph"], np.float64))) / dt
-    out["rev_vel"] = (np.asarray(cur["rev"], np.float64) - np.asarray(prev["rev"], np.float64)) / dt
+    out["root_lin_vel"] = per(np.asarray(cur["root_pos"], np.float64) - np.asarray(prev["root_pos"], np.float64))
+    out["root_ang_vel"] = per(quat_to_rotvec(quat_mul(np.asarray(cur["root_quat"], np.float64),
+                                                      quat_conj(np.asarray(prev["root_quat"], np.float64)))))
+    out["sph_vel"] = per(quat_to_rotvec(quat_mul(quat_conj(np.asarray(prev["sph"], np.float64)),
+                                                 np.asarray(cur["sph"], np.float64))))
+    out["rev_vel"] = per(np.asarray(cur["rev"], np.float64) - np.asarray(prev["rev"], np.float64))
     return out
+
+
+#: The pose fields of a ``read_state()`` dict that finite-difference velocities are computed from.
+POSE_SHAPES: dict[str, tuple[int, ...]] = {"root_pos": (3,), "root_quat": (4,), "sph": (8, 4), "rev": (4,)}
+
+
+class PoseHistory:
+    """The last ``span`` poses of N bodies, for discriminator velocities over ``span`` control steps.
+
+    ``span = 1`` gives :func:`finite_difference_velocities` from one control step to the next (the inputs
+    of every controller trained up to 2026-11-27). A longer span averages the velocity over ``span``
+    steps, ``(pose_t - pose_{t-span}) / (span dt)``: the per-step jitter that the fixed action noise puts
+    into the joints (the position motors reach each new target within a physics substep) shrinks about
+    ``span`` times, while the gait's own velocities, which change over a stride (about 1 s), barely
+    change. Right after a reset a body has fewer poses: its velocities span the steps it has
+    (``min(span, steps since reset)``), from the reset pose on.
+    """
+
+    def __init__(self, n: int, span: int = 1) -> None:
+        if isinstance(span, bool) or not isinstance(span, int | np.integer) or span < 1:
+            raise ValueError(f"velocity span must be an integer >= 1 (control steps), got {span!r}")
+        self.n, self.span = int(n), int(span)
+        # ring[-j] is the pose j control steps before the current one
+        self._ring = {k: np.zeros((self.span, self.n) + shape) for k, shape in POSE_SHAPES.items()}
+        self._age = np.zeros(self.n, dtype=np.int64)
+
+    def reset(self, state: dict[str, np.ndarray], idx: np.ndarray | None = None) -> None:
+        """Start bodies ``idx`` (default: all) over from the pose in ``state`` (all N bodies' rows)."""
+        rows = slice(None) if idx is None else np.asarray(idx)
+        for k in POSE_SHAPES:
+            self._ring[k][:, rows] = np.asarray(state[k], np.float64)[rows]
+        self._age[rows] = 0
+
+    def velocities(self, state: dict[str, np.ndarray], dt: float) -> dict[str, np.ndarray]:
+        """``state`` with its velocity fields replaced by differences over ``min(span, age + 1)`` steps of
+        ``dt``; then remembers ``state``'s pose as the newest."""
+        steps = np.minimum(self._age + 1, self.span)
+        bodies = np.arange(self.n)
+        prev = {k: ring[self.span - steps, bodies] for k, ring in self._ring.items()}
+        out = finite_difference_velocities(prev, state, steps * float(dt))
+        for k, ring in self._ring.items():
+            ring[:-1] = ring[1:].copy()
+            ring[-1] = np.asarray(state[k], np.float64)
+        self._age += 1
+        return out
 
 
 def self_observation(state: dict[str, np.ndarray]) -> np.ndarray:

@@ -32,6 +32,7 @@ from navzoo.agents.amp.features import (
     AMP_VELOCITY_MODES,
     FEATURE_DIM,
     N_RAYS,
+    PoseHistory,
     amp_features,
     finite_difference_velocities,
     heading,
@@ -68,6 +69,9 @@ class PathTaskConfig:
     # one control step apart, reference and policy alike) or "physics" (simulator velocities vs the
     # library's central differences: the inputs of checkpoints up to 3315)
     amp_velocity: str = "finite_difference"
+    # finite-difference velocities over this many control steps (features.PoseHistory): 1 = one step (every
+    # controller up to 2026-11-27); longer spans average out the action noise's per-step jitter
+    amp_velocity_span: int = 1
     alpha_p: float = 2.0
     alpha_e: float = 0.0005
     alpha_d: float = 1.8
@@ -122,6 +126,12 @@ class PathTaskConfig:
         if self.amp_velocity not in AMP_VELOCITY_MODES:
             raise ValueError(f"PathTaskConfig.amp_velocity must be one of {AMP_VELOCITY_MODES}, "
                              f"got {self.amp_velocity!r}")
+        span = self.amp_velocity_span
+        if isinstance(span, bool) or not isinstance(span, int | np.integer) or span < 1:
+            raise ValueError(f"PathTaskConfig.amp_velocity_span must be an integer >= 1, got {span!r}")
+        if span != 1 and self.amp_velocity != "finite_difference":
+            raise ValueError(f"PathTaskConfig.amp_velocity_span {span} needs amp_velocity='finite_difference', "
+                             f"got {self.amp_velocity!r}")
 
 
 class AmpPathEnv:
@@ -165,7 +175,7 @@ class AmpPathEnv:
         self._clock = 0  # control steps since construction (replan_sync)
         self._window = np.zeros((self.num_envs, self.cfg.amp_window, FEATURE_DIM))
         # poses of the last control step (finite-difference velocities of the discriminator's features)
-        self._prev = {k: np.zeros((self.num_envs,) + shape) for k, shape in _POSE_SHAPES.items()}
+        self._history = PoseHistory(self.num_envs, self.cfg.amp_velocity_span)
         # stage 3 state
         e, nv = self.num_envs, self.cfg.n_neighbours
         self._crowd = np.zeros(e, dtype=bool)
@@ -340,8 +350,7 @@ class AmpPathEnv:
         # The first frame of an episode has no predecessor: its features keep the velocities it was
         # started with (the reference's for RSI, zero standing), in either velocity mode.
         feats = amp_features(state)[idx]
-        for key in _POSE_SHAPES:
-            self._prev[key][idx] = state[key][idx]
+        self._history.reset(state, idx)
         for k, i in enumerate(idx):
             self.paths[i] = self._make_path(state["root_pos"][i, :2], head[k], speeds[k])
             self._window[i] = feats[k]
@@ -497,11 +506,9 @@ class AmpPathEnv:
         r_d = np.exp(np.minimum(0.0, u) / cfg.alpha_d) - 1.0
         reward = r_tau + r_e + r_d
         if cfg.amp_velocity == "finite_difference":
-            feats = amp_features(finite_difference_velocities(self._prev, state, self.dt))
+            feats = amp_features(self._history.velocities(state, self.dt))
         else:
             feats = amp_features(state)
-        for key in _POSE_SHAPES:
-            self._prev[key] = state[key].copy()
         self._window = np.roll(self._window, -1, axis=1)
         self._window[:, -1] = feats
         amp_obs = self._window.reshape(self.num_envs, -1).astype(np.float32)
@@ -524,39 +531,50 @@ class AmpPathEnv:
 
     def sample_reference_amp_obs(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """``n`` windows of W consecutive reference frames (control rate), flattened like ``amp_obs``."""
-        return reference_amp_windows(self.reference, n, rng, self.cfg.amp_window, self.dt, self.cfg.amp_velocity)
+        return reference_amp_windows(self.reference, n, rng, self.cfg.amp_window, self.dt, self.cfg.amp_velocity,
+                                     self.cfg.amp_velocity_span)
 
     def close(self) -> None:
         nzsim.disconnect(self.client)
 
 
-_POSE_SHAPES = {"root_pos": (3,), "root_quat": (4,), "sph": (8, 4), "rev": (4,)}
-
-
 def amp_obs_version(config: PathTaskConfig, reference: ReferenceMotion) -> str:
     """What the discriminator inputs mean (stored in checkpoints; a change invalidates the discriminator):
-    the velocity mode and the reference's ground offset (:func:`ground_clips`)."""
+    the velocity mode, its span in control steps when longer than one, and the reference's ground offset
+    (:func:`ground_clips`)."""
     ground = (getattr(reference, "meta", None) or {}).get("ground_contact_z")
-    return f"velocity={config.amp_velocity};ground={ground}"
+    span = "" if config.amp_velocity_span == 1 else f";span={int(config.amp_velocity_span)}"
+    return f"velocity={config.amp_velocity}{span};ground={ground}"
 
 
 def reference_amp_windows(reference: ReferenceMotion, n: int, rng: np.random.Generator, window: int,
-                          dt: float, velocity: str = "physics") -> np.ndarray:
+                          dt: float, velocity: str = "physics", span: int = 1) -> np.ndarray:
     """``n`` windows of ``window`` consecutive reference frames ``dt`` apart, flattened (n, window * F).
 
     ``velocity="finite_difference"``: every frame's velocities are backward differences from the state
-    ``dt`` before it (one more state per window), as :class:`AmpPathEnv` computes them for the policy;
-    ``"physics"``: the library's stored (central-difference) velocities.
+    ``span * dt`` before it, as :class:`AmpPathEnv` computes them for the policy (``span`` control steps,
+    :class:`~navzoo.agents.amp.features.PoseHistory`); ``"physics"``: the library's stored
+    (central-difference) velocities (``span`` must be 1).
     """
+    if span != 1 and velocity != "finite_difference":
+        raise ValueError(f"a velocity span of {span} steps needs velocity='finite_difference', got {velocity!r}")
     clips, times = reference.sample_times(rng, n)
     dur = np.array([reference.duration(int(c)) for c in clips])
     if velocity == "physics":
         times = np.clip(times, (window - 1) * dt, np.maximum(dur, (window - 1) * dt))
         frames = [reference_features(reference.state_at(clips, times - (window - 1 - k) * dt)) for k in range(window)]
     elif velocity == "finite_difference":
-        times = np.clip(times, window * dt, np.maximum(dur, window * dt))
-        states = [reference_state_dict(reference.state_at(clips, times - (window - k) * dt)) for k in range(window + 1)]
-        frames = [amp_features(finite_difference_velocities(states[k], states[k + 1], dt)) for k in range(window)]
+        first = (window - 1 + span) * dt
+        times = np.clip(times, first, np.maximum(dur, first))
+        states: dict[int, dict[str, np.ndarray]] = {}  # control steps before the window's last frame -> state
+
+        def at(back: int) -> dict[str, np.ndarray]:
+            if back not in states:
+                states[back] = reference_state_dict(reference.state_at(clips, times - back * dt))
+            return states[back]
+
+        frames = [amp_features(finite_difference_velocities(at(window - 1 - k + span), at(window - 1 - k), span * dt))
+                  for k in range(window)]
     else:
         raise ValueError(f"velocity must be one of {AMP_VELOCITY_MODES}, got {velocity!r}")
     return np.stack(frames, axis=1).reshape(n, -1).astype(np.float32)

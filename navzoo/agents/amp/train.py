@@ -65,6 +65,9 @@ class TrainArgs:
     # discriminator inputs (see PathTaskConfig.amp_velocity and path_env.ground_clips); a change of either
     # invalidates a checkpoint's discriminator: resume it with --reset-disc 1
     amp_velocity: str = "finite_difference"
+    # finite-difference velocities over this many control steps (PathTaskConfig.amp_velocity_span; 1 up to
+    # 2026-11-27); another span than the checkpoint's also needs --reset-disc 1
+    amp_velocity_span: int = 1
     ground_reference: int = 1
     # 1: on resume, keep actor, critic, observation and value normalisers and their optimisers, but start a
     # fresh discriminator (weights, optimiser, input normaliser, replay buffer)
@@ -116,7 +119,8 @@ def run(args: TrainArgs) -> dict[str, Any]:
     hidden = tuple(int(h) for h in args.hidden.split(","))
     task = PathTaskConfig(stage=args.stage, pd_mode=args.pd_mode, obstacle_obs=bool(args.obstacles),
                           boxes_per_patch=4 if args.obstacles else 0, pair_patches=bool(args.obstacles),
-                          amp_velocity=args.amp_velocity, door_prob=args.door_prob,
+                          amp_velocity=args.amp_velocity, amp_velocity_span=args.amp_velocity_span,
+                          door_prob=args.door_prob,
                           replan_sync=bool(args.replan_sync))
     make_reference = grounded_locomotion_reference if args.ground_reference else locomotion_reference
     if args.workers > 1:

@@ -183,6 +183,6 @@ class SubprocAmpVecEnv(SubprocVecEnv):
         super().__init__(
             [partial(_path_env, make_reference, self.envs_per_worker, cfg, seed + w) for w in range(int(workers))],
             partial(reference_amp_windows, reference, window=cfg.amp_window, dt=1.0 / cfg.control_hz,
-                    velocity=cfg.amp_velocity),
+                    velocity=cfg.amp_velocity, span=cfg.amp_velocity_span),
             amp_obs_version(cfg, reference))
         self._reference = reference
