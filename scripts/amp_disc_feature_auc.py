@@ -326,7 +326,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--keep-trim", action="store_true",
                     help="apply the policy config's steering trim (training had none)")
     ap.add_argument("--velocity-span", type=int, default=1,
-                    help="control steps the velocity features span (PathTaskConfig.amp_velocity_span); not 1: --ckpt ''")
+                    help="control steps the velocity features span (PathTaskConfig.amp_velocity_span; the checkpoint's)")
     ap.add_argument("--top", type=int, default=25)
     ap.add_argument("--no-probes", action="store_true", help="skip the linear probes on feature groups")
     ap.add_argument("--json", default=None, help="write everything here")
@@ -347,9 +347,7 @@ def main(argv: list[str] | None = None) -> int:
                           pair_patches=rays and args.stage == 3, door_prob=args.door_prob,
                           replan_sync=bool(args.replan_sync), amp_velocity="finite_difference",
                           amp_velocity_span=args.velocity_span)
-    if args.velocity_span != 1 and args.ckpt:
-        raise SystemExit(f"--velocity-span {args.velocity_span}: the checkpoint's discriminator read one-step "
-                         "velocities; run with --ckpt '' (feature AUCs and linear probes only)")
+
     reference = grounded_locomotion_reference()
     hz = task.control_hz
     warmup = int(round(args.warmup * hz))
@@ -404,6 +402,9 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.ckpt:
         tensors, meta = load_training_checkpoint(Path(args.ckpt))
+        if (meta.get("amp_obs_version") or "velocity=physics;ground=None") != amp_obs_version:
+            raise SystemExit(f"{args.ckpt}: its discriminator read {meta.get('amp_obs_version')!r}, these windows are "
+                             f"{amp_obs_version!r} (set --velocity-span to the checkpoint's, or --ckpt '')")
         logits, dinfo = discriminator_of(tensors, meta)
         replay = tensors["replay"]["data"].numpy().astype(np.float64)
         lr = logits(ref)
