@@ -148,8 +148,13 @@ def test_span_settings_are_checked_and_recorded(reference):
 
 
 def test_scene_training_on_another_span_needs_a_fresh_discriminator(tmp_path):
-    from navzoo.rl.amp_joint import AmpJointArgs, NavAmpVecEnv, train
+    from navzoo.rl.amp_joint import AmpJointArgs, NavAmpVecEnv, SubprocNavAmpVecEnv, train
 
+    for bad in (0, True):  # refused before any worker process starts
+        with pytest.raises(ValueError, match="amp_velocity_span"):
+            SubprocNavAmpVecEnv("navzoo/Lobby-v0", 1, 2, workers=2, amp_velocity_span=bad)
+        with pytest.raises(ValueError, match="amp_velocity_span"):
+            NavAmpVecEnv("navzoo/Lobby-v0", 1, 2, n_robots=0, amp_velocity_span=bad)
     env = NavAmpVecEnv("navzoo/Lobby-v0", n_envs=1, n_humans=2, n_robots=0, seed=0, amp_velocity_span=4)
     assert env.amp_obs_version == "velocity=finite_difference;span=4;ground=-0.002"
     env.close()
@@ -161,3 +166,6 @@ def test_scene_training_on_another_span_needs_a_fresh_discriminator(tmp_path):
     assert out["global_step"] == out["start_global_step"] + 32
     line = json.loads((tmp_path / "fresh" / "metrics.jsonl").read_text().splitlines()[-1])
     assert line["losses/disc"] > 0 and line["rewards/style"] > 0
+    # the same command resumes the run, with the discriminator it trained (no second reset)
+    again = train(AmpJointArgs(**{**args.__dict__, "out": str(tmp_path / "fresh"), "reset_disc": True, "steps": 64}))
+    assert again["resumed_from"] and again["global_step"] == out["start_global_step"] + 64

@@ -136,7 +136,7 @@ class NavAmpVecEnv:
         self.amp_obs_dim = self.window * int(FEATURE_DIM)
         self.reference = reference if reference is not None else grounded_locomotion_reference()
         self.span = int(amp_velocity_span)
-        self.amp_obs_version = amp_obs_version(_task(self.span), self.reference)
+        self.amp_obs_version = amp_obs_version(_task(amp_velocity_span), self.reference)
         self.robots = list(env0.possible_agents[:self.n_robots])
         self.robot_learner = None
         if robot_learn is not None:
@@ -363,7 +363,7 @@ def _task(span: int) -> Any:
     :func:`~navzoo.agents.amp.path_env.amp_obs_version`)."""
     from navzoo.agents.amp.path_env import PathTaskConfig
 
-    return PathTaskConfig(amp_velocity="finite_difference", amp_velocity_span=int(span))
+    return PathTaskConfig(amp_velocity="finite_difference", amp_velocity_span=span)
 
 
 def _reference_windows(reference: Any, window: int, dt: float, n: int, rng: np.random.Generator,
@@ -410,6 +410,7 @@ class SubprocNavAmpVecEnv(SubprocVecEnv):
 
         if isinstance(workers, bool) or not isinstance(workers, int | np.integer) or workers < 1:
             raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+        task = _task(amp_velocity_span)  # checks the span before any worker starts
         overrides = dict(env_overrides or {})
         if scenes is not None:
             if "scene" in overrides:
@@ -417,14 +418,14 @@ class SubprocNavAmpVecEnv(SubprocVecEnv):
             scenes = _check_scenes(scenes)
         self.dt = 1.0 / AMP_CONTROL_HZ
         self.window = AMP_WINDOW  # the workers' NavAmpVecEnv default
-        self.span = int(amp_velocity_span)
+        self.span = int(task.amp_velocity_span)
         self.scenes = [scenes[w % len(scenes)] if scenes else overrides.get("scene") for w in range(int(workers))]
         makers = [partial(_nav_amp_env, env_id, int(n_envs), int(n_humans), int(n_robots), robot_policy,
                           int(seed) + 1009 * w, {**overrides, **({"scene": sc} if sc else {})}, self.span)
                   for w, sc in enumerate(self.scenes)]
         reference = grounded_locomotion_reference()
         super().__init__(makers, partial(_reference_windows, reference, self.window, self.dt, span=self.span),
-                         amp_obs_version(_task(self.span), reference))
+                         amp_obs_version(task, reference))
 
     def stats(self) -> dict[str, float]:
         return stats_from_counters(self.counters(), self.dt)
@@ -503,7 +504,8 @@ class AmpJointArgs:
     # the discriminator's finite-difference velocities span this many control steps (features.PoseHistory;
     # the shipped controller: 1); another span than the start checkpoint's needs reset_disc
     amp_velocity_span: int = 1
-    # start from args.init with a fresh discriminator (weights, optimiser, input normaliser, replay buffer)
+    # start from args.init with a fresh discriminator (weights, optimiser, input normaliser, replay buffer); a
+    # resumed run keeps its own discriminator
     reset_disc: bool = False
 
 
@@ -536,7 +538,7 @@ def train(args: AmpJointArgs) -> dict[str, Any]:
     saved_args = out / "amp_joint_args.json"
     mine = dataclasses.asdict(args)
     fixed = ("env_id", "n_envs", "n_humans", "n_robots", "robot_policy", "init", "env", "workers", "scenes",
-             "amp_velocity_span", "reset_disc")
+             "amp_velocity_span")
     robot_cfg = None
     if args.robot_learn is not None:
         from navzoo.rl.stepped_ppo import RobotLearnConfig
