@@ -20,6 +20,7 @@ from navzoo.agents.amp.path_env import (
 from navzoo.agents.amp.toy import RandomAmpVecEnv
 from navzoo.agents.amp.train import grounded_locomotion_reference, locomotion_reference
 from navzoo.agents.motion_lib import foot_heights, humanoid_fk
+from tests.amp_helpers import FixedTimes
 
 DT = 1.0 / 30.0
 REV, REV_V = FEATURE_SLICES["rev_angle"], FEATURE_SLICES["rev_vel"]
@@ -72,17 +73,8 @@ def test_kinematic_playback_through_the_policy_path_equals_the_reference_windows
     clips, times = reference.sample_times(rng, 4)
     times = np.maximum(times, 3 * DT)
     # reference windows for these clip times: the sampler's clips/times replayed
-    class Fixed:
-        def __init__(self, lib):
-            self.lib = lib
 
-        def sample_times(self, rng, n):
-            return clips, times
-
-        def __getattr__(self, name):
-            return getattr(self.lib, name)
-
-    want = reference_amp_windows(Fixed(reference), 4, rng, 2, DT, "finite_difference")
+    want = reference_amp_windows(FixedTimes(reference, clips, times), 4, rng, 2, DT, "finite_difference")
     from navzoo.agents.amp.features import amp_features, finite_difference_velocities
 
     frames = []

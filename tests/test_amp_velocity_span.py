@@ -20,6 +20,7 @@ from navzoo.agents.amp.features import (
 )
 from navzoo.agents.amp.path_env import AmpPathEnv, PathTaskConfig, amp_obs_version, reference_amp_windows
 from navzoo.agents.amp.train import grounded_locomotion_reference
+from tests.amp_helpers import FixedTimes
 
 DT = 1.0 / 30.0
 REV, REV_V = FEATURE_SLICES["rev_angle"], FEATURE_SLICES["rev_vel"]
@@ -84,19 +85,10 @@ def test_reference_windows_span_the_same_steps_as_the_policy_path(reference):
     clips, times = reference.sample_times(rng, 5)
     times = np.maximum(times, 6 * DT)
 
-    class Fixed:
-        def __init__(self, lib):
-            self.lib = lib
-
-        def sample_times(self, rng, n):
-            return clips, times
-
-        def __getattr__(self, name):
-            return getattr(self.lib, name)
 
     from navzoo.agents.amp.features import reference_state_dict
 
-    want = reference_amp_windows(Fixed(reference), 5, rng, 2, DT, "finite_difference", span=4)
+    want = reference_amp_windows(FixedTimes(reference, clips, times), 5, rng, 2, DT, "finite_difference", span=4)
     hist = PoseHistory(5, 4)
     frames = []
     for k in (5, 4, 3, 2, 1, 0):
@@ -109,7 +101,7 @@ def test_reference_windows_span_the_same_steps_as_the_policy_path(reference):
             frames.append(f)
     np.testing.assert_allclose(np.concatenate(frames, axis=1), want, atol=1e-5)
     # span 1 is the one-step window the shipped controller was trained on
-    one = reference_amp_windows(Fixed(reference), 5, rng, 2, DT, "finite_difference")
+    one = reference_amp_windows(FixedTimes(reference, clips, times), 5, rng, 2, DT, "finite_difference")
     four = want.reshape(5, 2, FEATURE_DIM)
     assert not np.allclose(one.reshape(5, 2, FEATURE_DIM)[:, :, REV_V], four[:, :, REV_V])
     np.testing.assert_allclose(one.reshape(5, 2, FEATURE_DIM)[:, :, REV], four[:, :, REV])  # same poses
