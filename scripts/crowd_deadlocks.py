@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from navzoo.agents.crowd import CrowdPolicy
-from navzoo.benchmark.pedestrians import SCENES, _path_length, people_per_scene
+from navzoo.benchmark.pedestrians import SCENES, people_per_scene, remaining_path_length
 from navzoo.envs.nav_env import NavEnv
 from navzoo.envs.wrappers import FrozenAgents
 
@@ -38,7 +38,7 @@ def trips(scene: str, n: int, seconds: float, crowd: str, yielding: bool, seed: 
         for j in np.flatnonzero(at | late):
             out["goals" if at[j] else "timeouts"] += 1
             start[j] = t
-            limit[j] = 2.0 * _path_length(env.paths[j], env.pos[j]) / env.v_pref[j] + 10.0
+            limit[j] = 2.0 * remaining_path_length(env, j) / env.v_pref[j] + 10.0
         goals = env.goals_reached.copy()
         still = np.where(np.linalg.norm(env.vel, axis=1) < 0.05, still + env.config.dt, 0.0)
     w.close()

@@ -95,3 +95,30 @@ def test_a_resumed_run_must_use_the_same_models(tmp_path, monkeypatch):
     changed = pedestrians._settings(*args, "diffusion", "amp", 1)
     assert changed["diffusion_config_sha256"] != base["diffusion_config_sha256"]
     assert {k for k in base if base[k] != changed[k]} == {"diffusion_config_sha256"}
+
+
+def test_a_trip_after_a_timeout_is_timed_on_the_path_still_ahead():
+    """The limit of the trip that follows a timeout counts the waypoints not yet reached, not the whole path
+    again (which held the part already walked and made such trips lenient)."""
+    from types import SimpleNamespace
+
+    import navzoo
+    from navzoo.benchmark.pedestrians import remaining_path_length
+
+    path = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 3.0]])
+    env = SimpleNamespace(paths=[path], wp_index=np.array([1]), pos=np.array([[3.0, 0.0]]))
+    assert remaining_path_length(env, 0) == pytest.approx(1.0 + 3.0)
+    env.wp_index[0] = 2
+    env.pos[0] = [4.0, 1.0]
+    assert remaining_path_length(env, 0) == pytest.approx(2.0)
+    env.wp_index[0] = 7  # past the end: what is left is the way to the goal
+    env.pos[0] = [4.0, 2.5]
+    assert remaining_path_length(env, 0) == pytest.approx(0.5)
+    # on a fresh trip it is about the env's own shortest path length (a first waypoint within the reach
+    # tolerance may already count as reached)
+    nav = navzoo.make(None, scene="lobby", n_robots=0, n_humans=3, raw=True).unwrapped
+    nav.reset(seed=0)
+    for i in range(nav.n_total):
+        left = remaining_path_length(nav, i)
+        assert left <= nav.shortest_path_length[i] + 1e-9 and left == pytest.approx(nav.shortest_path_length[i], abs=0.1)
+    nav.close()

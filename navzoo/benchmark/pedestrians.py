@@ -116,6 +116,15 @@ def target_points(env) -> np.ndarray | None:
     return env.diffusion.points_now(env) if env.diffusion is not None else None
 
 
+def remaining_path_length(env, i: int) -> float:
+    """Length (m) of agent ``i``'s A* path still ahead: from its position through the waypoints it has not
+    reached yet (``env.wp_index``) to the path's end (its goal). A new trip's time limit is measured on it:
+    after a goal, on the path just planned; after a timeout, on what is left of the same path (not the
+    whole path again, which held the part already walked)."""
+    path = env.paths[i]
+    return _path_length(path[min(int(env.wp_index[i]), len(path) - 1):], env.pos[i])
+
+
 def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, policy_dir: str | None = None,
                  pose_every: int = 1, max_poses: int = 20_000, crowd_model: str = "sfm",
                  human_model: str = "amp", env_overrides: dict[str, Any] | None = None,
@@ -184,7 +193,7 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
             m_flag[j] = a_flag[j] = False
             max_err[j] = 0.0
             start[j] = t
-            limit[j] = 2.0 * _path_length(env.paths[R + j], env.pos[R + j]) / env.v_pref[R + j] + 10.0
+            limit[j] = 2.0 * remaining_path_length(env, R + j) / env.v_pref[R + j] + 10.0
             if outcome[j] == "fall":
                 done[j] = True
         goals = env.goals_reached[h].copy()
