@@ -116,9 +116,10 @@ class NavAmpVecEnv:
         from navzoo.envs.config import AMP_CONTROL_HZ
 
         for name, v, lo in (("n_envs", n_envs, 1), ("n_humans", n_humans, 1), ("n_robots", n_robots, 0),
-                            ("amp_window", amp_window, 1), ("amp_velocity_span", amp_velocity_span, 1)):
+                            ("amp_window", amp_window, 1)):
             if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < lo:
                 raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
+        task = _task(amp_velocity_span)  # checks the span
         overrides = dict(env_overrides or {})
         for key in ("human_model", "n_humans", "n_robots", "dt"):
             if key in overrides:
@@ -135,8 +136,8 @@ class NavAmpVecEnv:
         self.window = int(amp_window)
         self.amp_obs_dim = self.window * int(FEATURE_DIM)
         self.reference = reference if reference is not None else grounded_locomotion_reference()
-        self.span = int(amp_velocity_span)
-        self.amp_obs_version = amp_obs_version(_task(amp_velocity_span), self.reference)
+        self.span = int(task.amp_velocity_span)
+        self.amp_obs_version = amp_obs_version(task, self.reference)
         self.robots = list(env0.possible_agents[:self.n_robots])
         self.robot_learner = None
         if robot_learn is not None:
