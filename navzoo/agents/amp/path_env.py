@@ -174,7 +174,7 @@ class AmpPathEnv:
         self.t = np.zeros(self.num_envs, dtype=int)
         self._clock = 0  # control steps since construction (replan_sync)
         self._window = np.zeros((self.num_envs, self.cfg.amp_window, FEATURE_DIM))
-        # poses of the last amp_velocity_span control steps (finite-difference velocities of the discriminator's features)
+        # poses of the last amp_velocity_span control steps (the discriminator's finite-difference velocities)
         self._history = PoseHistory(self.num_envs, self.cfg.amp_velocity_span)
         # stage 3 state
         e, nv = self.num_envs, self.cfg.n_neighbours
