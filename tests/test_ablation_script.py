@@ -93,3 +93,14 @@ def test_the_summary_by_scene_pools_seeds(tmp_path):
     assert len(table) == 4
     assert table[2].startswith("| c, lobby (15 people, seeds 0,1) | 6 | 0.667 |")
     assert table[3].startswith("| c, home (5 people, seeds 0) | 1 | 0.000 |")
+
+
+def test_the_graded_wall_margin_field():
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:0")["graded"] is None  # the module's default
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:0::::0")["graded"] is False
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:0::::1")["graded"] is True
+    with pytest.raises(ValueError, match="GRADED must be 1 or 0"):
+        ablation.parse_config("c:0.1:0.1:4:2.0:0::::yes")
+    on, off = ablation.parse_config("c:0.1:0.1:4:2.0:0::::1"), ablation.parse_config("c:0.1:0.1:4:2.0:0::::0")
+    with pytest.raises(ValueError, match="'c'.*graded"):
+        ablation.done_runs([_row(on, "lobby", 0)], [off])

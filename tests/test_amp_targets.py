@@ -134,3 +134,72 @@ def test_target_accel_limits_how_fast_a_rollout_speeds_up_from_the_body():
     free, limited = first_second(0.0), first_second(0.8)
     assert limited <= 0.5 * 0.8 * 1.0 ** 2 + 0.8 * ah.PLAN_DT + 1e-6
     assert free > limited + 0.1
+
+
+def _door_clearance(gap: float):
+    segs = _door(gap)
+
+    def clearance(points: np.ndarray) -> np.ndarray:
+        from navzoo.world import geometry as geo
+
+        return geo.min_distance_to_segments(np.asarray(points, dtype=float), segs)
+
+    return segs, clearance
+
+
+def _graded_walk(gap: float, x0: float, margin: float = 0.1, seconds: float = 6.0) -> tuple[np.ndarray, list[float]]:
+    """A lone 0.4 m rollout disc walking up through the door along a straight path on its axis, with the
+    wall radius graded as the physics pedestrians' target rollouts do; returns its end and wall radii."""
+    from navzoo.envs.amp_humans import graded_wall_radius, narrow_points
+
+    segs, clearance = _door_clearance(gap)
+    groups = np.repeat(np.arange(2), 4)
+    path = np.array([[0.0, -2.0], [0.0, 3.0]])
+    narrow = [narrow_points(path, clearance, 0.3 + margin + 0.1)]
+    pos, vel, radii = np.array([[x0, -2.0]]), np.zeros((1, 2)), []
+    for _ in range(int(seconds / 0.1)):
+        wall_r = graded_wall_radius(pos, np.array([0.3]), margin, narrow)
+        radii.append(float(wall_r[0]))
+        vel = social_force_velocities(pos, vel, np.array([[0.0, 1.2]]), 0.4, 2.0, 0.1, SocialForceParams(), segs,
+                                      segment_groups=groups, wall_radius=wall_r)
+        pos = pos + 0.1 * vel
+    return pos[0], radii
+
+
+def test_narrow_points_are_the_door_stretch_of_a_path():
+    from navzoo.envs.amp_humans import narrow_points
+
+    _, clearance = _door_clearance(0.9)
+    pts, c = narrow_points(np.array([[0.0, -2.0], [0.0, 2.0]]), clearance, 0.5)
+    assert len(pts) > 0 and np.all(np.abs(pts[:, 1]) < 0.5)  # only near the wall's line
+    assert c.min() == pytest.approx(0.45, abs=1e-6)  # the door's half width, at its centre
+    assert len(narrow_points(np.array([[0.0, -2.0], [0.0, 2.0]]), _door_clearance(1.4)[1], 0.5)[0]) == 0
+
+
+def test_graded_wall_margin_lets_a_rollout_through_a_door_its_full_margin_stops_at():
+    # The same start as test_a_padded_body_stops_at_a_door_that_its_wall_radius_passes: 0.15 m off the axis.
+    assert _walk(0.4, 0.15)[1] < 0.0  # the full 0.1 m wall margin: held back by the jambs
+    end, radii = _graded_walk(0.9, 0.15)
+    assert end[1] > 2.5
+    assert min(radii) == pytest.approx(0.35)  # 0.45 m half width - 0.1 m slack
+    assert radii[0] == pytest.approx(0.4) and radii[-1] == pytest.approx(0.4)  # full margin away from the door
+
+
+def test_graded_wall_margin_keeps_the_full_margin_in_a_wide_door():
+    _, radii = _graded_walk(1.2, 0.0)
+    assert np.allclose(radii, 0.4)
+
+
+def test_physics_pedestrians_plan_the_home_doors_with_the_graded_margin():
+    """In the home (0.9 m doors) the paths through a door get narrow points with the door's half width."""
+    from navzoo.envs.nav_env import NavEnv
+
+    env = NavEnv(scene="home", n_robots=0, n_humans=3, human_model="amp", dt=1.0 / 30.0)
+    try:
+        env.reset(seed=0)
+        narrow = env.amp.narrow_passages([env.paths[i] for i in range(3)], env.radius[:3])
+        through_door = [c for _, c in narrow if len(c)]
+        assert through_door, "no person's path in the home passes a door"
+        assert min(float(c.min()) for c in through_door) < 0.46
+    finally:
+        env.close()
