@@ -17,6 +17,8 @@ TRIM field keeps that policy's own trim. A ninth field ACCEL sets ``TARGET_ACCEL
 rollouts' speed-up limit; 0 = off; left out = the module's defaults); empty TRIM and POLICY fields keep
 the policy's own. A tenth field GRADED turns the graded wall margin of the rollouts on (1) or off (0)
 (``GRADED_WALL_MARGIN``: less wall margin in doors too narrow for it; left out or empty = the module's default, on).
+An eleventh field SKIP does the same for ``SKIP_PASSED_WAYPOINTS`` (moving past waypoints a body has passed
+while it sees the next one; default off).
 ``--crowd`` picks the crowd model that makes the targets (default ``sfm``), and
 ``--diffusion-set K=V,...`` changes the diffusion crowd's settings in every run (names as in
 ``navzoo eval crowd-matched --diffusion-set``).
@@ -38,8 +40,8 @@ from pathlib import Path
 
 def parse_config(text: str) -> dict:
     parts = text.split(":")
-    if len(parts) not in (4, 5, 6, 7, 8, 9, 10):
-        raise ValueError("a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN[:TRIM[:POLICY[:ACCEL[:GRADED]]]]]], "
+    if len(parts) not in (4, 5, 6, 7, 8, 9, 10, 11):
+        raise ValueError("a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN[:TRIM[:POLICY[:ACCEL[:GRADED[:SKIP]]]]]]], "
                          f"got {text!r}")
     name, plan, wall, ahead = parts[:4]
     cfg = {"name": name, "plan_margin": float(plan), "wall_margin": float(wall), "lookahead": int(ahead),
@@ -47,9 +49,11 @@ def parse_config(text: str) -> dict:
            "trim": float(parts[6]) if len(parts) >= 7 and parts[6] else None,
            "policy": parts[7] if len(parts) >= 8 and parts[7] else None,
            "accel": float(parts[8]) if len(parts) >= 9 and parts[8] else None,
-           "graded": {"1": True, "0": False}.get(parts[9]) if len(parts) == 10 and parts[9] else None}
-    if len(parts) == 10 and parts[9] and cfg["graded"] is None:
-        raise ValueError(f"GRADED must be 1 or 0, got {parts[9]!r} in {text!r}")
+           "graded": {"1": True, "0": False}.get(parts[9]) if len(parts) >= 10 and parts[9] else None,
+           "skip": {"1": True, "0": False}.get(parts[10]) if len(parts) == 11 and parts[10] else None}
+    for field, i in (("GRADED", 9), ("SKIP", 10)):
+        if len(parts) > i and parts[i] and cfg[field.lower()] is None:
+            raise ValueError(f"{field} must be 1 or 0, got {parts[i]!r} in {text!r}")
     if cfg["policy"] is not None and not (Path(cfg["policy"]) / "config.json").is_file():
         raise ValueError(f"no exported AMP policy (config.json) in {cfg['policy']!r}, in {text!r}")
     flags = parts[5].strip() if len(parts) >= 6 else "0"
@@ -94,6 +98,8 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
         ah.TARGET_ACCEL = ah.DIFFUSION_TARGET_ACCEL = cfg["accel"]
     if cfg.get("graded") is not None:
         ah.GRADED_WALL_MARGIN = cfg["graded"]
+    if cfg.get("skip") is not None:
+        ah.SKIP_PASSED_WAYPOINTS = cfg["skip"]
     from navzoo.benchmark.pedestrians import follow_scene
 
     row = follow_scene(scene, n, seconds, seed, env_overrides=dict.fromkeys(cfg["env_flags"], True),
@@ -101,11 +107,12 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
     row.pop("poses")
     return {"config": cfg["name"],
             **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles", "env_flags",
-                                   "trim", "policy", "accel", "graded")},
+                                   "trim", "policy", "accel", "graded", "skip")},
             "crowd": crowd, "diffusion_settings": diffusion_settings, "seed": seed, **row}
 
 
-_PARAMS = ("plan_margin", "wall_margin", "lookahead", "turn_rate", "env_flags", "trim", "policy", "accel", "graded")
+_PARAMS = ("plan_margin", "wall_margin", "lookahead", "turn_rate", "env_flags", "trim", "policy", "accel", "graded",
+           "skip")
 
 
 def _group(row: dict) -> tuple:

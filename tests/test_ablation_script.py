@@ -104,3 +104,10 @@ def test_the_graded_wall_margin_field():
     on, off = ablation.parse_config("c:0.1:0.1:4:2.0:0::::1"), ablation.parse_config("c:0.1:0.1:4:2.0:0::::0")
     with pytest.raises(ValueError, match="'c'.*graded"):
         ablation.done_runs([_row(on, "lobby", 0)], [off])
+
+
+def test_the_skip_field():
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:0::::1")["skip"] is None
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:0::::1:1")["skip"] is True
+    with pytest.raises(ValueError, match="SKIP must be 1 or 0"):
+        ablation.parse_config("c:0.1:0.1:4:2.0:0::::1:on")

@@ -203,3 +203,36 @@ def test_physics_pedestrians_plan_the_home_doors_with_the_graded_margin():
         assert min(float(c.min()) for c in through_door) < 0.46
     finally:
         env.close()
+
+
+def test_a_body_that_swerved_past_all_its_next_waypoints_moves_on_only_where_it_sees_the_next():
+    from navzoo.envs.amp_humans import passed
+
+    # Waypoint 2 is at x = 1.0; the body went round a group 0.8 m to the side and is now at x = 3.2:
+    # beyond the tolerance of waypoints 2..6, so the tolerance and lookahead rules keep waypoint 2.
+    pos = np.array([3.2, 0.8])
+    assert advance_waypoint(PATH, 2, pos, tol=0.6, lookahead=4) == 2
+    assert passed(PATH, 2, pos) and not passed(PATH, 7, pos)
+    # With a line of sight everywhere it moves past every waypoint it is beyond: on to waypoint 7 (x = 3.5).
+    assert advance_waypoint(PATH, 2, pos, tol=0.6, lookahead=4, visible=lambda a, b: True) == 7
+    # A wall between it and the next waypoints keeps the old rule, and so does the strict order.
+    assert advance_waypoint(PATH, 2, pos, tol=0.6, lookahead=4, visible=lambda a, b: False) == 2
+    assert advance_waypoint(PATH, 2, pos, tol=0.6, lookahead=0, visible=lambda a, b: True) == 2
+
+
+def test_skipping_passed_waypoints_is_an_env_option_off_by_default():
+    import navzoo.envs.amp_humans as ah
+    from navzoo.envs.nav_env import NavEnv
+
+    assert ah.SKIP_PASSED_WAYPOINTS is False
+    env = NavEnv(scene="station", n_robots=0, n_humans=1, human_model="amp", dt=1.0 / 30.0)
+    try:
+        env.reset(seed=0)
+        assert env.waypoint_visibility(0) is None
+        ah.SKIP_PASSED_WAYPOINTS = True
+        see = env.waypoint_visibility(0)
+        path = env.paths[0]
+        assert see is not None and see(path[0], path[1])  # consecutive A* waypoints see each other
+    finally:
+        ah.SKIP_PASSED_WAYPOINTS = False
+        env.close()

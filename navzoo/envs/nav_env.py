@@ -18,6 +18,7 @@ from navzoo.agents.humanoid import HumanoidBodies
 from navzoo.agents.policy import preferred_velocity
 from navzoo.agents.robot import RobotBodies, command_velocity, wrap_angle
 from navzoo.agents.yielding import TurnTaking, YieldParams
+from navzoo.envs import amp_humans
 from navzoo.envs import observations as obs_terms
 from navzoo.envs.amp_humans import PLAN_MARGIN as AMP_PLAN_MARGIN
 from navzoo.envs.amp_humans import WAYPOINT_LOOKAHEAD, AmpHumans, advance_waypoint
@@ -853,8 +854,20 @@ class NavEnv(ParallelEnv):
     def _advance_waypoints(self) -> None:
         tol = self.config.waypoint_tolerance
         for i in range(self.n_total):
-            ahead = WAYPOINT_LOOKAHEAD if self.amp is not None and i >= self.n_robots else 0
-            self.wp_index[i] = advance_waypoint(self.paths[i], int(self.wp_index[i]), self.pos[i], tol, ahead)
+            amp = self.amp is not None and i >= self.n_robots
+            self.wp_index[i] = advance_waypoint(self.paths[i], int(self.wp_index[i]), self.pos[i], tol,
+                                                WAYPOINT_LOOKAHEAD if amp else 0,
+                                                self.waypoint_visibility(i) if amp else None)
+
+    def waypoint_visibility(self, i: int):
+        """Line-of-sight test ``(a, b) -> bool`` on agent ``i``'s bare planning grid (pedestrians: around
+        fallen bodies too, when planned so), with which physics pedestrians move past waypoints they have
+        passed (:func:`~navzoo.envs.amp_humans.advance_waypoint`); None when that is off."""
+        if not amp_humans.SKIP_PASSED_WAYPOINTS:
+            return None
+        fallen = i >= self.n_robots and self._fallen_grid is not None
+        planner = (self._fallen_planner if fallen else self._planner)(float(self.radius[i]))
+        return planner.line_of_sight
 
     def _human_progress(self) -> np.ndarray:
         """(H,) each pedestrian's speed toward the next waypoint of its path, as a share of its preferred
