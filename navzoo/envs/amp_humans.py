@@ -91,7 +91,7 @@ WAYPOINT_LOOKAHEAD = 4
 # SKIP_PASSED_WAYPOINTS, physics pedestrians also move past every waypoint they are beyond, along the
 # path, while they can see the next one (advance_waypoint's ``visible``). Off: over 4 seeds of the
 # following protocol (device machine, docs/pedestrians.md "Skipping passed waypoints") success moved by
-# -5.0 to +9.0 points per seed, pooled 0.573 -> 0.579 with social-force targets and 0.659 -> 0.653 with
+# -6.8 to +9.0 points per seed, pooled 0.573 -> 0.579 with social-force targets and 0.659 -> 0.653 with
 # diffusion targets, with a few more falls: within what the seeds scatter.
 SKIP_PASSED_WAYPOINTS = False
 
