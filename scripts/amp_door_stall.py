@@ -2,13 +2,16 @@
 
     python scripts/amp_door_stall.py scan [--radii 0.33,0.35,...,0.4]
     python scripts/amp_door_stall.py lone [--scene home] [--seeds 0,1] [--graded 1|0] [--seconds 200]
+    python scripts/amp_door_stall.py cost
 
 ``scan`` rolls one social-force disc (0.4 m towards people, as the rollouts of ``navzoo.envs.amp_humans``:
 1.3 m/s, 2 rad/s turn limit, 0.1 s steps) through the home's middle door (x = 8 m, 0.9 m wide) from 14 starts,
 7 on each side at different offsets from the door's axis, for every wall radius given, and prints how many
 starts did not get through in 7 s. ``lone`` runs the following protocol's scene with one person
 (:func:`navzoo.benchmark.pedestrians.follow_scene`) and prints its trips per outcome, one JSON line per seed,
-with the graded wall margin on (1) or off (0).
+with the graded wall margin on (1) or off (0). ``cost`` times one replan of all target rollouts
+(``AmpHumans.plan_all``) in the home (5 people) and the doorway (13), with the graded margin off and on,
+twice each (median of 7 replans).
 """
 
 from __future__ import annotations
@@ -68,6 +71,30 @@ def lone(scene: str, seeds: list[int], graded: bool, seconds: float) -> None:
                           **{k: row[k] for k in ("success", "off_path", "fall", "timeout", "map_trips")}}), flush=True)
 
 
+def cost() -> None:
+    import time
+
+    import navzoo.envs.amp_humans as ah
+    from navzoo.envs.nav_env import NavEnv
+
+    for scene, n in (("home", 5), ("doorway", 13)):
+        env = NavEnv(scene=scene, n_robots=0, n_humans=n, human_model="amp", dt=1.0 / 30.0)
+        env.reset(seed=0)
+        ms: dict[str, list[float]] = {"off": [], "on": []}
+        for graded in (False, True, False, True):
+            ah.GRADED_WALL_MARGIN = graded
+            env.amp.plan_all()  # the first replan also finds the paths' narrow points
+            times = []
+            for _ in range(7):
+                t0 = time.perf_counter()
+                env.amp.plan_all()
+                times.append(time.perf_counter() - t0)
+            ms["on" if graded else "off"].append(round(1e3 * float(np.median(times)), 1))
+        ah.GRADED_WALL_MARGIN = True
+        print(json.dumps({"scene": scene, "people": n, "replan_ms": ms}), flush=True)
+        env.close()
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -78,9 +105,12 @@ def main(argv: list[str] | None = None) -> int:
     lo.add_argument("--seeds", default="0,1")
     lo.add_argument("--graded", type=int, choices=(0, 1), default=1)
     lo.add_argument("--seconds", type=float, default=200.0)
+    sub.add_parser("cost")
     args = ap.parse_args(argv)
     if args.cmd == "scan":
         scan([float(r) for r in args.radii.split(",")])
+    elif args.cmd == "cost":
+        cost()
     else:
         lone(args.scene, [int(s) for s in args.seeds.split(",")], bool(args.graded), args.seconds)
     return 0
