@@ -320,6 +320,8 @@ class AmpHumans:
         rad = env.radius[h] + PLAN_MARGIN  # an articulated body swings beyond its disc: plan with room to spare
         graded = GRADED_WALL_MARGIN and WALL_PLAN_MARGIN > 0.0 and env.config.crowd_model in ("sfm", "diffusion")
         narrow = self.narrow_passages(paths, env.radius[h]) if graded else None
+        wall_rad = env.radius[h] + WALL_PLAN_MARGIN
+        visible = [env.waypoint_visibility(i) for i in h]
         vmax = np.full(self.n, env.config.human_max_speed)
         robots = np.flatnonzero(env.alive[:R]) if env.config.humans_see_robots else np.zeros(0, dtype=int)
         r_pos, r_vel, r_rad = env.pos[robots], env.vel[robots], env.radius[robots]
@@ -345,14 +347,14 @@ class AmpHumans:
             else:
                 for j in range(self.n):  # advance along the A* path, as the env does for physics pedestrians
                     wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD,
-                                                   env.waypoint_visibility(R + j))
+                                                   visible[j])
                 wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in range(self.n)])
                 pref = preferred_velocity(pos, wp, goal, v_pref)
             if env.turn_taking is not None:  # yields in progress shape the rollout ahead
                 pref = env.turn_taking.apply(env.sim_time + k * PLAN_DT, pref)
             o_pos = r_pos + (k * PLAN_DT) * r_vel
-            wall_rad = (env.radius[h] + WALL_PLAN_MARGIN if narrow is None
-                        else graded_wall_radius(pos, env.radius[h], WALL_PLAN_MARGIN, narrow))
+            if narrow is not None:
+                wall_rad = graded_wall_radius(pos, env.radius[h], WALL_PLAN_MARGIN, narrow)
             if env.config.crowd_model in ("sfm", "diffusion"):
                 vel = social_force_velocities(pos, vel, pref, rad, vmax, PLAN_DT, self.sfm, env.segments,
                                               others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
