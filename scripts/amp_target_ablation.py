@@ -10,7 +10,8 @@ social-force rollouts), ``WAYPOINT_LOOKAHEAD`` (0 = waypoints in strict order) a
 ``TARGET_TURN_RATE`` (rad/s, the rollouts' heading-rate limit; 0 or left out = off) and, with
 FALLEN = 1, ``NavConfig.human_fallen_obstacles`` (people plan around fallen bodies; 0 or left out = off);
 FALLEN may instead name boolean NavConfig flags to turn on, joined by ``+`` (e.g.
-``human_door_entries+human_fallen_obstacles``). A seventh field TRIM sets the AMP policy's steering
+``human_door_entries+human_fallen_obstacles``), or set word-valued ones as ``name=value`` (e.g.
+``human_replan_blocked=off``). A seventh field TRIM sets the AMP policy's steering
 trim in rad (``AmpPolicy.steering_trim``; left out = the policy's own, see ``navzoo train amp-trim``).
 An eighth field POLICY names an exported AMP policy directory (left out = the shipped one); an empty
 TRIM field keeps that policy's own trim. A ninth field ACCEL sets ``TARGET_ACCEL`` and ``DIFFUSION_TARGET_ACCEL`` (m/s², the
@@ -61,14 +62,29 @@ def parse_config(text: str) -> dict:
     from navzoo.envs.config import NavConfig
 
     for flag in cfg["env_flags"]:
-        if not isinstance(getattr(NavConfig(), flag, None), bool):
+        name, _, value = flag.partition("=")
+        default = getattr(NavConfig(), name, None)
+        if value and not isinstance(default, str):
+            raise ValueError(f"{name!r} is not a NavConfig field that takes a word, in {text!r}")
+        if not value and not isinstance(default, bool):
             raise ValueError(f"{flag!r} is not a boolean NavConfig field, in {text!r}")
+        if value:
+            NavConfig(**{name: value})  # a value the field refuses is named here, before any run
     cfg["fallen_obstacles"] = "human_fallen_obstacles" in cfg["env_flags"]
     if min(cfg["plan_margin"], cfg["wall_margin"], cfg["lookahead"], cfg["turn_rate"], cfg["accel"] or 0.0) < 0:
         raise ValueError(f"margins, lookahead, turn rate and acceleration must be >= 0, got {text!r}")
     if cfg["trim"] is not None and not abs(cfg["trim"]) <= 0.5:
         raise ValueError(f"the steering trim must be within ±0.5 rad, got {text!r}")
     return cfg
+
+
+def env_overrides(flags: list[str]) -> dict:
+    """NavConfig fields of a configuration's FALLEN field: ``name`` (a boolean, turned on) or ``name=value``."""
+    out: dict = {}
+    for flag in flags:
+        name, _, value = flag.partition("=")
+        out[name] = value if value else True
+    return out
 
 
 def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
@@ -102,7 +118,7 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
         ah.SKIP_PASSED_WAYPOINTS = cfg["skip"]
     from navzoo.benchmark.pedestrians import follow_scene
 
-    row = follow_scene(scene, n, seconds, seed, env_overrides=dict.fromkeys(cfg["env_flags"], True),
+    row = follow_scene(scene, n, seconds, seed, env_overrides=env_overrides(cfg["env_flags"]),
                        steering_trim=cfg.get("trim"), policy_dir=cfg.get("policy"), crowd_model=crowd)
     row.pop("poses")
     return {"config": cfg["name"],

@@ -111,3 +111,14 @@ def test_the_skip_field():
     assert ablation.parse_config("c:0.1:0.1:4:2.0:0::::1:1")["skip"] is True
     with pytest.raises(ValueError, match="SKIP must be 1 or 0"):
         ablation.parse_config("c:0.1:0.1:4:2.0:0::::1:on")
+
+
+def test_word_valued_config_fields_are_set_and_checked():
+    cfg = ablation.parse_config("c:0.1:0.1:4:2.0:human_replan_blocked=off+human_door_entries")
+    assert ablation.env_overrides(cfg["env_flags"]) == {"human_replan_blocked": "off", "human_door_entries": True}
+    with pytest.raises(ValueError, match="human_replan_blocked"):
+        ablation.parse_config("c:0.1:0.1:4:2.0:human_replan_blocked=sometimes")
+    with pytest.raises(ValueError, match="takes a word"):
+        ablation.parse_config("c:0.1:0.1:4:2.0:human_door_entries=yes")
+    with pytest.raises(ValueError, match="boolean"):
+        ablation.parse_config("c:0.1:0.1:4:2.0:human_replan_blocked")

@@ -69,6 +69,11 @@ class NavConfig:
         human_door_entries: physics (AMP) pedestrians' A* paths cross each door on its axis, from an
             entry point 0.7 m before it to an exit point 0.7 m after it (:mod:`navzoo.envs.doors`);
             off by default.
+        human_replan_blocked: pedestrians whose next waypoint has been out of their line of sight for
+            ``REPLAN_HIDDEN_S`` (the crowd pushed them off their A* path, e.g. round a table's corner, where
+            the straight pull toward the waypoint holds them against the corner) plan a new A* path from
+            where they are, at most every ``REPLAN_EVERY_S`` (:meth:`NavEnv._replan_blocked_humans`):
+            ``"amp"`` for physics pedestrians, ``"all"`` for kinematic ones too, ``"off"`` (the default).
         human_contact_penalty: kinematic pedestrians (crowd or learning ones) get the collision
             reward (-20) on the step a contact begins: with a robot (the robot's swept collision test
             or PyBullet contact) or with another pedestrian (discs overlapping). They are not taken
@@ -151,6 +156,7 @@ class NavConfig:
     human_contact_penalty: bool = True
     human_fallen_obstacles: bool = False
     human_door_entries: bool = False
+    human_replan_blocked: Literal["amp", "all", "off"] = "off"
     human_speed: tuple[float, float] = (1.0, 1.4)
     human_at_goal: Literal["new_goal", "stop"] = "new_goal"
     human_max_speed: float = 2.0
@@ -218,6 +224,8 @@ class NavConfig:
             raise bad("humans_see_robots", "a bool")
         if not isinstance(self.human_yielding, bool):
             raise bad("human_yielding", "a bool")
+        if self.human_replan_blocked not in ("amp", "all", "off"):
+            raise bad("human_replan_blocked", "'amp', 'all' or 'off'")
         if self.human_at_goal not in ("new_goal", "stop"):
             raise bad("human_at_goal", "'new_goal' or 'stop'")
         if not isinstance(self.human_body_contacts, bool):

@@ -41,6 +41,10 @@ from navzoo.world.tasks import TaskSampler
 # Swept tests use this slack: ORCA-like controllers drive exactly onto the boundary of the
 # collision disc, and floating-point round-off must not turn a graze at 0.6 m into a collision.
 COLLISION_TOLERANCE = 1e-4  # m
+# NavConfig.human_replan_blocked: a pedestrian whose next waypoint has been out of its line of sight this long
+# plans a new A* path from where it is, at most once per REPLAN_EVERY_S.
+REPLAN_HIDDEN_S = 1.0
+REPLAN_EVERY_S = 2.0
 
 RESET_OPTIONS = ("robot_starts", "robot_goals", "robot_yaws", "human_starts", "human_goals")
 
@@ -335,6 +339,8 @@ class NavEnv(ParallelEnv):
         self._fallen_planners: dict[float, AStarPlanner] = {}
         self._fallen_points = np.zeros((0, 2))
         self._fallen_replanned = False
+        self._wp_hidden = np.zeros(N)  # seconds each agent's current waypoint has been out of its sight
+        self._last_replan = np.full(N, -np.inf)  # sim time of each pedestrian's last blocked-path replan
         # Replayed people walk their recorded track: their "path" is the track's last point.
         self.paths: list[np.ndarray] = [
             self._plan(i, self.pos[i], self.goal[i]) if (rp is None or i < R) else self.goal[i][None].copy()
@@ -565,6 +571,7 @@ class NavEnv(ParallelEnv):
         # Events.
         coll_kind = self._robot_collisions(prev_pos, robot_alive) if not nan_state else {}
         self._advance_waypoints()
+        blocked_replanned = self._replan_blocked_humans(dt)
         self.d_goal = np.linalg.norm(self.goal - self.pos, axis=1)
         reached = np.zeros(self.n_total, dtype=bool)
         reached[:R] = robot_alive & (self.d_goal[:R] < self.goal_tolerance)
@@ -588,7 +595,8 @@ class NavEnv(ParallelEnv):
             )
         if self.amp is not None and hum.size:
             amp_terms = self.amp.task_reward()
-            self.amp.after_step(replan=bool(human_reached.any() or new_yields.any() or self._fallen_replanned))
+            self.amp.after_step(replan=bool(human_reached.any() or new_yields.any() or self._fallen_replanned
+                                            or blocked_replanned))
             self._fallen_replanned = False
         # After a re-target a pedestrian's distance jumps to its new goal: that step earns the goal
         # reward, not a progress penalty, so its previous distance is taken as the new one.
@@ -914,6 +922,40 @@ class NavEnv(ParallelEnv):
             if path is not None:  # else no way around (it lies in the only door): keep the path and wait
                 self.paths[i] = path
                 self.wp_index[i] = 0
+                changed = True
+        return changed
+
+    def _replan_blocked_humans(self, dt: float) -> bool:
+        """``NavConfig.human_replan_blocked``: pedestrians whose current waypoint has been out of their line
+        of sight (on their bare planning grid, from the nearest free point) for ``REPLAN_HIDDEN_S`` plan a
+        new A* path from where they are, at most once per ``REPLAN_EVERY_S``. Without it, a person the crowd
+        pushed round a corner is pulled straight at a waypoint behind the corner and stays there (social
+        force has no way round). Returns whether any path changed (the physics pedestrians then roll out
+        new targets at once)."""
+        mode = self.config.human_replan_blocked
+        if mode == "off" or self.replay is not None or (mode == "amp" and self.amp is None):
+            return False
+        R = self.n_robots
+        fallen = self.human_fallen if self.amp is not None else np.zeros(self.n_humans, dtype=bool)
+        changed = False
+        for j in np.flatnonzero(~fallen & ~self.arrived[R:]):
+            i = R + j
+            path = self.paths[i]
+            k = min(int(self.wp_index[i]), len(path) - 1)
+            planner = (self._fallen_planner if self._fallen_grid is not None else self._planner)(float(self.radius[i]))
+            start = planner._snap(self.pos[i])
+            if start is not None and planner.line_of_sight(start[0], path[k]):
+                self._wp_hidden[i] = 0.0
+                continue
+            self._wp_hidden[i] += dt
+            if self._wp_hidden[i] < REPLAN_HIDDEN_S or self.sim_time - self._last_replan[i] < REPLAN_EVERY_S:
+                continue
+            self._last_replan[i] = self.sim_time
+            new = self._plan(i, self.pos[i], self.goal[i], fallback=False)
+            if new is not None:  # else keep the path (no way from here on the grid)
+                self.paths[i] = new
+                self.wp_index[i] = 0
+                self._wp_hidden[i] = 0.0
                 changed = True
         return changed
 
