@@ -23,7 +23,9 @@ while it sees the next one; default off).
 ``--crowd`` picks the crowd model that makes the targets (default ``sfm``), and
 ``--diffusion-set K=V,...`` changes the diffusion crowd's settings in every run (names as in
 ``navzoo eval crowd-matched --diffusion-set``).
-``--scenes`` picks some of the 8 scenes (each keeps its people count).
+``--scenes`` picks some of the 8 scenes (each keeps its people count). ``--bodies kinematic`` walks the crowd
+model with kinematic bodies instead (the AMP-only fields then change nothing; for NavConfig fields that
+apply to both, such as ``human_replan_blocked=all``).
 
     python scripts/amp_target_ablation.py --configs before:0.1:0.1:0,now:0.1:0:4 --seconds 200 \
         --workers 16 --out docs/results/amp_target_ablation.jsonl
@@ -91,7 +93,7 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
     import os
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    cfg, scene, n, seconds, seed, crowd, diffusion_settings = job
+    cfg, scene, n, seconds, seed, crowd, diffusion_settings, bodies = job
     if diffusion_settings:  # every DiffusionCrowd this process builds gets the settings
         from navzoo.agents.diffusion.crowd import DiffusionCrowd
         from navzoo.benchmark.matched_realism import apply_diffusion_settings
@@ -119,12 +121,13 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
     from navzoo.benchmark.pedestrians import follow_scene
 
     row = follow_scene(scene, n, seconds, seed, env_overrides=env_overrides(cfg["env_flags"]),
-                       steering_trim=cfg.get("trim"), policy_dir=cfg.get("policy"), crowd_model=crowd)
+                       steering_trim=cfg.get("trim"), policy_dir=cfg.get("policy"), crowd_model=crowd,
+                       human_model=bodies)
     row.pop("poses")
     return {"config": cfg["name"],
             **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles", "env_flags",
                                    "trim", "policy", "accel", "graded", "skip")},
-            "crowd": crowd, "diffusion_settings": diffusion_settings, "seed": seed, **row}
+            "crowd": crowd, "bodies": bodies, "diffusion_settings": diffusion_settings, "seed": seed, **row}
 
 
 _PARAMS = ("plan_margin", "wall_margin", "lookahead", "turn_rate", "env_flags", "trim", "policy", "accel", "graded",
@@ -132,10 +135,10 @@ _PARAMS = ("plan_margin", "wall_margin", "lookahead", "turn_rate", "env_flags", 
 
 
 def _group(row: dict) -> tuple:
-    """What a result row is a sample of: configuration, crowd model and its settings, seed. Rows written
-    before the crowd was recorded were social-force runs."""
+    """What a result row is a sample of: configuration, crowd model and its settings, seed, bodies. Rows
+    written before the crowd (the bodies) was recorded were social-force runs (AMP bodies)."""
     settings = json.dumps(row.get("diffusion_settings") or {}, sort_keys=True)
-    return row["config"], row.get("crowd", "sfm"), settings, row["seed"]
+    return row["config"], row.get("crowd", "sfm"), settings, row["seed"], row.get("bodies", "amp")
 
 
 def done_runs(rows: list[dict], configs: list[dict]) -> set[tuple]:
@@ -165,13 +168,15 @@ def summary(path: str, by_scene: bool = False) -> str:
 
     def group(r: dict) -> tuple:
         g = _group(r)
-        return (*g[:3], r["scene"], r["pedestrians"]) if by_scene else g
+        return (*g[:3], r["scene"], r["pedestrians"], g[4]) if by_scene else g
 
     for g in dict.fromkeys(group(r) for r in rows):
         rs = [r for r in rows if group(r) == g]
         name, crowd, settings = g[:3]
         if crowd != "sfm" or settings != "{}":
             name = f"{name} ({crowd}{'' if settings == '{}' else ' ' + settings})"
+        if g[-1] != "amp":
+            name = f"{name} [{g[-1]} bodies]"
         if by_scene:
             seeds = sorted({r["seed"] for r in rs})
             label = f"{name}, {g[3]} ({g[4]} people, seeds {','.join(map(str, seeds))})"
@@ -195,6 +200,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--crowd", default="sfm", choices=("sfm", "orca", "diffusion"),
                     help="crowd model that makes the target trajectories (default sfm)")
+    ap.add_argument("--bodies", default="amp", choices=("amp", "kinematic"),
+                    help="pedestrian bodies (default amp: physics pedestrians tracking the crowd model's targets)")
     ap.add_argument("--diffusion-set", default="", metavar="K=V,...", help="diffusion crowd settings for every run")
     ap.add_argument("--out", default="amp_target_ablation.jsonl")
     ap.add_argument("--summary", metavar="JSONL", help="print the table of a result file and exit")
@@ -225,8 +232,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         ap.error(str(exc))
     settings_key = json.dumps(diffusion_settings or {}, sort_keys=True)
-    jobs = [(c, s, people[s], args.seconds, seed, args.crowd, diffusion_settings) for seed in seeds for s in scenes for c in configs
-            if (c["name"], args.crowd, settings_key, seed, s) not in done]
+    jobs = [(c, s, people[s], args.seconds, seed, args.crowd, diffusion_settings, args.bodies)
+            for seed in seeds for s in scenes for c in configs
+            if (c["name"], args.crowd, settings_key, seed, args.bodies, s) not in done]
     jobs.sort(key=lambda j: -j[2])  # crowded scenes first: they take longest
     print(f"{len(jobs)} runs ({len(rows)} rows already in {out})", file=sys.stderr, flush=True)
     with mp.get_context("spawn").Pool(args.workers, maxtasksperchild=1) as pool, out.open("a") as f:

@@ -26,10 +26,10 @@ def _row(config: dict, scene: str, seed: int, crowd: str | None = "sfm", success
 def test_runs_of_another_crowd_model_are_not_taken_as_done():
     cfg = ablation.parse_config("c:0.1:0.1:4:2.0:0")
     done = ablation.done_runs([_row(cfg, "lobby", 0, "sfm"), _row(cfg, "home", 1, None)], [cfg])
-    assert ("c", "sfm", "{}", 0, "lobby") in done
-    assert ("c", "sfm", "{}", 1, "home") in done  # rows from before the crowd was recorded were social force
-    assert ("c", "diffusion", "{}", 0, "lobby") not in done
-    assert ("c", "sfm", "{}", 1, "lobby") not in done
+    assert ("c", "sfm", "{}", 0, "amp", "lobby") in done
+    assert ("c", "sfm", "{}", 1, "amp", "home") in done  # rows from before the crowd was recorded were social force
+    assert ("c", "diffusion", "{}", 0, "amp", "lobby") not in done
+    assert ("c", "sfm", "{}", 1, "amp", "lobby") not in done
 
 
 def test_a_name_reused_with_other_parameters_is_refused():
@@ -38,7 +38,7 @@ def test_a_name_reused_with_other_parameters_is_refused():
     with pytest.raises(ValueError, match="'c'.*trim"):
         ablation.done_runs([_row(old, "lobby", 0)], [new])
     other = ablation.parse_config("d:0.1:0.1:4:2.0:0:0.02")
-    assert ablation.done_runs([_row(old, "lobby", 0)], [other]) == {("c", "sfm", "{}", 0, "lobby")}
+    assert ablation.done_runs([_row(old, "lobby", 0)], [other]) == {("c", "sfm", "{}", 0, "amp", "lobby")}
 
 
 def test_the_summary_keeps_crowd_models_apart(tmp_path):
@@ -122,3 +122,16 @@ def test_word_valued_config_fields_are_set_and_checked():
         ablation.parse_config("c:0.1:0.1:4:2.0:human_door_entries=yes")
     with pytest.raises(ValueError, match="boolean"):
         ablation.parse_config("c:0.1:0.1:4:2.0:human_replan_blocked")
+
+
+def test_kinematic_body_runs_are_their_own_sample(tmp_path):
+    cfg = ablation.parse_config("c:0.1:0.1:4:2.0:human_replan_blocked=all")
+    rows = [_row(cfg, "lobby", 0, "sfm", bodies="kinematic", pedestrians=15),
+            _row(cfg, "lobby", 0, "sfm", success=5, pedestrians=15)]
+    assert ablation.done_runs(rows, [cfg]) == {("c", "sfm", "{}", 0, "kinematic", "lobby"),
+                                              ("c", "sfm", "{}", 0, "amp", "lobby")}
+    f = tmp_path / "rows.jsonl"
+    f.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    for by_scene in (False, True):
+        lines = ablation.summary(str(f), by_scene=by_scene).splitlines()[2:]
+        assert len(lines) == 2 and sum("[kinematic bodies]" in line for line in lines) == 1
