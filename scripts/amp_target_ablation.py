@@ -183,11 +183,12 @@ def summary(path: str, by_scene: bool = False) -> str:
         else:
             label = f"{name}, seed {g[3]} ({len(rs)} scenes)"
         n = sum(r[k] for r in rs for k in keys)
-        err = sum(r["err_sum"] for r in rs) / max(1, sum(r["err_n"] for r in rs))
+        err_n = sum(r["err_n"] for r in rs)  # 0: no target trajectory (kinematic bodies of a rule-based crowd)
+        err = f"{sum(r['err_sum'] for r in rs) / err_n:.3f}" if err_n else "n/a"
         share = {k: sum(r[k] for r in rs) / max(1, n) for k in (*keys, "map_trips", "agent_trips")}
         lines.append(f"| {label} | {n} | {share['success']:.3f} | {share['off_path']:.3f} | "
                      f"{share['fall']:.3f} | {share['timeout']:.3f} | {share['map_trips']:.3f} | "
-                     f"{share['agent_trips']:.3f} | {err:.3f} |")
+                     f"{share['agent_trips']:.3f} | {err} |")
     return "\n".join(lines)
 
 

@@ -135,3 +135,7 @@ def test_kinematic_body_runs_are_their_own_sample(tmp_path):
     for by_scene in (False, True):
         lines = ablation.summary(str(f), by_scene=by_scene).splitlines()[2:]
         assert len(lines) == 2 and sum("[kinematic bodies]" in line for line in lines) == 1
+    rows[0]["err_n"] = rows[0]["err_sum"] = 0  # no target trajectory to measure a path error against
+    f.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    lines = ablation.summary(str(f)).splitlines()[2:]
+    assert [line.endswith("| n/a |") for line in lines] == [True, False]

@@ -1,0 +1,109 @@
+"""Trace the trips that time out in one scene of the following protocol: where, how fast, next to what.
+
+    python scripts/amp_timeout_trace.py [--scene lobby] [--people 15] [--seconds 200] [--seed 0] \
+        [--crowd sfm] [--bodies amp] [--set human_replan_blocked=amp ...]
+
+Runs the pedestrian-following setup of ``navzoo eval pedestrians`` (the trip bookkeeping of
+:func:`navzoo.benchmark.pedestrians.follow_scene`: a trip ends at its goal, in a fall or when it takes
+longer than 2 x its path / preferred speed + 10 s) and prints one JSON line per ended trip. A timed-out
+trip also gets: the person's position, goal and path still ahead (m); its mean speed over the trip and
+that of its target point (AMP bodies; the target jumps back to the body at each 2 s replan, which adds
+about lag / 2 s to its speed); the shares of the trip's steps spent under 0.25 m/s; the mean distance
+between body and target; the nearest other person and the number within 1 m at the end; the shares of
+steps with a wall or a person touching the body (AMP bodies); and the distance from the nearest obstacle.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+from navzoo.benchmark import pedestrians as P
+
+
+def _value(text: str):
+    name, _, value = text.partition("=")
+    if not name or not value:
+        raise argparse.ArgumentTypeError(f"--set takes NAME=VALUE, got {text!r}")
+    for cast in (int, float):
+        try:
+            return name, cast(value)
+        except ValueError:
+            pass
+    return name, {"true": True, "false": False}.get(value.lower(), value)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scene", default="lobby")
+    ap.add_argument("--people", type=int, default=15)
+    ap.add_argument("--seconds", type=float, default=200.0)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--crowd", default="sfm", choices=("sfm", "orca", "diffusion"))
+    ap.add_argument("--bodies", default="amp", choices=("amp", "kinematic"))
+    ap.add_argument("--set", type=_value, action="append", default=[], metavar="NAME=VALUE",
+                    help="a NavConfig field for the run (repeatable)")
+    args = ap.parse_args(argv)
+    wrapped, env = P._make(args.scene, args.people, args.bodies, args.seconds, args.seed, None, args.crowd,
+                           env_overrides=dict(args.set))
+    amp = env.amp is not None
+    n, R = args.people, env.n_robots
+    h = np.arange(R, env.n_total)
+    hz = 1.0 / env.config.dt
+    start = np.zeros(n)
+    limit = 2.0 * env.shortest_path_length[h] / env.v_pref[h] + 10.0
+    goals = env.goals_reached[h].copy()
+    done = np.zeros(n, dtype=bool)
+    max_err = np.zeros(n)
+    pos_h, tgt_h, map_h, agent_h = [], [], [], []
+    while not env._needs_reset:
+        wrapped.step({})
+        t = env.sim_time
+        target = env.amp.target_now() if amp else env.pos[h]
+        fallen = env.human_fallen if amp else np.zeros(n, dtype=bool)
+        pos_h.append(env.pos[h].copy())
+        tgt_h.append(np.array(target, dtype=float))
+        map_h.append(np.array(env.human_map_contact if amp else np.zeros(n), dtype=bool))
+        agent_h.append(np.array(env.human_agent_contact if amp else np.zeros(n), dtype=bool))
+        max_err = np.where(~fallen, np.maximum(max_err, np.linalg.norm(env.pos[h] - target, axis=1)), max_err)
+        out = np.full(n, "", dtype=object)
+        out[fallen & ~done] = "fall"
+        at_goal = (env.goals_reached[h] > goals) & ~done & (out == "")
+        out[at_goal] = np.where(max_err[at_goal] < 0.5, "success", "off_path")
+        out[~done & (out == "") & (t - start > limit)] = "timeout"
+        for j in np.flatnonzero(out != ""):
+            rec = {"t": round(t, 1), "person": int(j), "outcome": out[j], "duration_s": round(t - start[j], 1),
+                   "limit_s": round(float(limit[j]), 1)}
+            if out[j] == "timeout":
+                k0 = max(0, len(pos_h) - int(round((t - start[j]) * hz)))
+                p_ = np.array(pos_h[k0:])[:, j]
+                q_ = np.array(tgt_h[k0:])[:, j]
+                vp = np.linalg.norm(np.diff(p_, axis=0), axis=1) * hz
+                vq = np.linalg.norm(np.diff(q_, axis=0), axis=1) * hz
+                d = np.linalg.norm(env.pos[h] - env.pos[h][j], axis=1)
+                d[j] = np.inf
+                rec.update(
+                    pos=env.pos[h][j].round(2).tolist(), goal=env.goal[R + j].round(2).tolist(),
+                    path_left_m=round(P.remaining_path_length(env, R + j), 2),
+                    body_speed=round(float(vp.mean()), 2), target_speed=round(float(vq.mean()), 2),
+                    body_slow=round(float((vp < 0.25).mean()), 2), target_slow=round(float((vq < 0.25).mean()), 2),
+                    lag_m=round(float(np.linalg.norm(p_ - q_, axis=1).mean()), 2),
+                    nearest_person_m=round(float(d.min()), 2) if n > 1 else None, within_1m=int((d < 1.0).sum()),
+                    wall_contact=round(float(np.array(map_h[k0:])[:, j].mean()), 2),
+                    person_contact=round(float(np.array(agent_h[k0:])[:, j].mean()), 2),
+                    obstacle_m=round(float(env.grid.distance_at(env.pos[h][j][None])[0]), 2))
+            print(json.dumps(rec), flush=True)
+            max_err[j] = 0.0
+            start[j] = t
+            limit[j] = 2.0 * P.remaining_path_length(env, R + j) / env.v_pref[R + j] + 10.0
+            if out[j] == "fall":
+                done[j] = True
+        goals = env.goals_reached[h].copy()
+    wrapped.close()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
