@@ -19,7 +19,8 @@ rollouts' speed-up limit; 0 = off; left out = the module's defaults); empty TRIM
 the policy's own. A tenth field GRADED turns the graded wall margin of the rollouts on (1) or off (0)
 (``GRADED_WALL_MARGIN``: less wall margin in doors too narrow for it; left out or empty = the module's default, on).
 An eleventh field SKIP does the same for ``SKIP_PASSED_WAYPOINTS`` (moving past waypoints a body has passed
-while it sees the next one; default off).
+while it sees the next one; default off), and a twelfth field KEEP for ``KEEP_APART`` (the people margin of the
+rollouts held by a short-range push instead of a wider radius).
 ``--crowd`` picks the crowd model that makes the targets (default ``sfm``), and
 ``--diffusion-set K=V,...`` changes the diffusion crowd's settings in every run (names as in
 ``navzoo eval crowd-matched --diffusion-set``).
@@ -43,8 +44,9 @@ from pathlib import Path
 
 def parse_config(text: str) -> dict:
     parts = text.split(":")
-    if len(parts) not in (4, 5, 6, 7, 8, 9, 10, 11):
-        raise ValueError("a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN[:TRIM[:POLICY[:ACCEL[:GRADED[:SKIP]]]]]]], "
+    if len(parts) not in (4, 5, 6, 7, 8, 9, 10, 11, 12):
+        raise ValueError("a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN[:TRIM[:POLICY[:ACCEL"
+                         "[:GRADED[:SKIP[:KEEP]]]]]]]]], "
                          f"got {text!r}")
     name, plan, wall, ahead = parts[:4]
     cfg = {"name": name, "plan_margin": float(plan), "wall_margin": float(wall), "lookahead": int(ahead),
@@ -53,8 +55,9 @@ def parse_config(text: str) -> dict:
            "policy": parts[7] if len(parts) >= 8 and parts[7] else None,
            "accel": float(parts[8]) if len(parts) >= 9 and parts[8] else None,
            "graded": {"1": True, "0": False}.get(parts[9]) if len(parts) >= 10 and parts[9] else None,
-           "skip": {"1": True, "0": False}.get(parts[10]) if len(parts) == 11 and parts[10] else None}
-    for field, i in (("GRADED", 9), ("SKIP", 10)):
+           "skip": {"1": True, "0": False}.get(parts[10]) if len(parts) >= 11 and parts[10] else None,
+           "keep": {"1": True, "0": False}.get(parts[11]) if len(parts) == 12 and parts[11] else None}
+    for field, i in (("GRADED", 9), ("SKIP", 10), ("KEEP", 11)):
         if len(parts) > i and parts[i] and cfg[field.lower()] is None:
             raise ValueError(f"{field} must be 1 or 0, got {parts[i]!r} in {text!r}")
     if cfg["policy"] is not None and not (Path(cfg["policy"]) / "config.json").is_file():
@@ -118,6 +121,8 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
         ah.GRADED_WALL_MARGIN = cfg["graded"]
     if cfg.get("skip") is not None:
         ah.SKIP_PASSED_WAYPOINTS = cfg["skip"]
+    if cfg.get("keep") is not None:
+        ah.KEEP_APART = cfg["keep"]
     from navzoo.benchmark.pedestrians import follow_scene
 
     row = follow_scene(scene, n, seconds, seed, env_overrides=env_overrides(cfg["env_flags"]),
@@ -126,12 +131,12 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
     row.pop("poses")
     return {"config": cfg["name"],
             **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles", "env_flags",
-                                   "trim", "policy", "accel", "graded", "skip")},
+                                   "trim", "policy", "accel", "graded", "skip", "keep")},
             "crowd": crowd, "bodies": bodies, "diffusion_settings": diffusion_settings, "seed": seed, **row}
 
 
 _PARAMS = ("plan_margin", "wall_margin", "lookahead", "turn_rate", "env_flags", "trim", "policy", "accel", "graded",
-           "skip")
+           "skip", "keep")
 
 
 def _group(row: dict) -> tuple:

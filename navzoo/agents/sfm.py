@@ -77,6 +77,14 @@ class SocialForceParams:
         max_substep: Longest integration sub-step (s); longer control periods are split,
             because explicit Euler on these potentials overshoots into bodies beyond ~0.1 s.
             navzoo choice.
+        keep_apart: Room (m) each person keeps beyond its radius from others (people and robots),
+            held by a short-range repulsion ``(A / keep_range) exp(-(d - r_i - r_j - 2 keep_apart) /
+            keep_range)`` along the line between the centres, added to the social repulsion, which
+            stays that of the bare radii. Widening the radii instead also doubles the social
+            repulsion at every distance (``exp(2 margin / B)``) and slows a whole crowd down. 0 = off
+            (the default). navzoo choice, for the target rollouts of physics pedestrians, whose
+            swinging limbs reach beyond their discs.
+        keep_range: Range (m) of the keep-apart repulsion. navzoo choice: 0.05.
     """
 
     tau: float = 0.5
@@ -90,10 +98,12 @@ class SocialForceParams:
     neighbor_dist: float = 5.0
     max_accel: float = 10.0
     max_substep: float = 0.1
+    keep_apart: float = 0.0
+    keep_range: float = 0.05
 
     def __post_init__(self) -> None:
-        positive = ("tau", "B", "B_wall", "neighbor_dist", "max_accel", "max_substep")
-        non_negative = ("A", "A_wall", "step_time", "side_bias")
+        positive = ("tau", "B", "B_wall", "neighbor_dist", "max_accel", "max_substep", "keep_range")
+        non_negative = ("A", "A_wall", "step_time", "side_bias", "keep_apart")
         for f in fields(self):
             value = getattr(self, f.name)
             if not np.isfinite(value):
@@ -216,6 +226,11 @@ def _interaction(
         ahead = np.clip(cos_phi, 0.0, None)
         side = params.side_bias * np.linalg.norm(force, axis=2) * ahead
         force += side[..., None] * right[:, None, :]
+
+    if params.keep_apart > 0.0:  # a short-range push that holds the extra room (see SocialForceParams)
+        kept = contact + 2.0 * params.keep_apart
+        push = (params.A / params.keep_range) * np.exp(np.minimum(-(dist - kept) / params.keep_range, 50.0))
+        force = force + push[..., None] * u
 
     mask = dist <= params.neighbor_dist
     if exclude_diagonal:

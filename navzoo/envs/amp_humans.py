@@ -94,6 +94,12 @@ WAYPOINT_LOOKAHEAD = 4
 # -6.8 to +9.0 points per seed, pooled 0.573 -> 0.579 with social-force targets and 0.659 -> 0.653 with
 # diffusion targets, with a few more falls: within what the seeds scatter.
 SKIP_PASSED_WAYPOINTS = False
+# How the social-force rollouts keep PLAN_MARGIN between people. False: on the radius, which also makes the
+# social repulsion exp(2 x 0.1 / 0.3) = 1.95 times stronger at every distance; in the lobby (15 people,
+# 60 s) the targets then move at 0.59 m/s where the kinematic social-force crowd walks at 0.87
+# (scripts/amp_pace_probe.py). True: the bare radii for the social repulsion and a short-range push that
+# holds the margin (SocialForceParams.keep_apart).
+KEEP_APART = False
 
 
 # Social force turns a disc toward a new direction as fast as its relaxation allows: at a trip's
@@ -273,6 +279,7 @@ class AmpHumans:
         self.lag_steps = int(round(LAG_LIMIT_S * CONTROL_HZ)) if env.diffusion is not None else None
         self.fallen = np.zeros(self.n, dtype=bool)
         self.sfm = SocialForceParams()
+        self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN)
         model = env.config.crowd_model
         self.orca = OrcaParams(right_bias=0.0, one_step_safety=False) if model == "orca_rvo2" else OrcaParams()
         self._index = {b: j for j, b in enumerate(self.ids)}
@@ -318,6 +325,9 @@ class AmpHumans:
         wp_index = env.wp_index[h].copy()
         paths = [env.paths[i] for i in h]
         rad = env.radius[h] + PLAN_MARGIN  # an articulated body swings beyond its disc: plan with room to spare
+        keep = KEEP_APART and env.config.crowd_model in ("sfm", "diffusion")
+        # keep apart: the room is held by a short-range push, the social repulsion is that of the bare discs
+        sf_rad, sf_params = (env.radius[h], self.sfm_keep) if keep else (rad, self.sfm)
         graded = GRADED_WALL_MARGIN and WALL_PLAN_MARGIN > 0.0 and env.config.crowd_model in ("sfm", "diffusion")
         narrow = self.narrow_passages(paths, env.radius[h]) if graded else None
         wall_rad = env.radius[h] + WALL_PLAN_MARGIN
@@ -356,7 +366,7 @@ class AmpHumans:
             if narrow is not None:
                 wall_rad = graded_wall_radius(pos, env.radius[h], WALL_PLAN_MARGIN, narrow)
             if env.config.crowd_model in ("sfm", "diffusion"):
-                vel = social_force_velocities(pos, vel, pref, rad, vmax, PLAN_DT, self.sfm, env.segments,
+                vel = social_force_velocities(pos, vel, pref, sf_rad, vmax, PLAN_DT, sf_params, env.segments,
                                               others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
                                               segment_groups=env.segment_groups, wall_radius=wall_rad)
             else:
