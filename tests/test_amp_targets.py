@@ -236,3 +236,27 @@ def test_skipping_passed_waypoints_is_an_env_option_off_by_default():
     finally:
         ah.SKIP_PASSED_WAYPOINTS = False
         env.close()
+
+
+def test_keep_apart_rollouts_hold_the_margin_without_pushing_walkers_aside():
+    """Two people walking side by side 0.9 m apart: rollouts on radii widened by the margin push them apart;
+    with KEEP_APART the social repulsion is that of the bare discs, and the push keeps the margin."""
+    import navzoo.envs.amp_humans as ah
+    from navzoo.envs.nav_env import NavEnv
+
+    def rollouts(keep: bool) -> np.ndarray:
+        old = ah.KEEP_APART
+        ah.KEEP_APART = keep
+        env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=2, human_model="amp", dt=1.0 / 30.0)
+        try:
+            env.reset(seed=0, options={"human_starts": [[-3.0, 0.45], [-3.0, -0.45]],
+                                       "human_goals": [[3.0, 0.45], [3.0, -0.45]]})
+            return env.amp.paths.copy()
+        finally:
+            ah.KEEP_APART = old
+            env.close()
+
+    wide, keep = rollouts(False), rollouts(True)
+    gap = {name: np.linalg.norm(p[0] - p[1], axis=1) for name, p in (("wide", wide), ("keep", keep))}
+    assert gap["keep"].min() >= 2 * 0.3 + 2 * ah.PLAN_MARGIN - 0.02
+    assert gap["keep"][-1] < gap["wide"][-1] - 0.05

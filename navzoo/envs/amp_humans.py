@@ -98,7 +98,10 @@ SKIP_PASSED_WAYPOINTS = False
 # social repulsion exp(2 x 0.1 / 0.3) = 1.95 times stronger at every distance; in the lobby (15 people,
 # 60 s) the targets then move at 0.59 m/s where the kinematic social-force crowd walks at 0.87
 # (scripts/amp_pace_probe.py). True: the bare radii for the social repulsion and a short-range push that
-# holds the margin (SocialForceParams.keep_apart).
+# holds the margin (SocialForceParams.keep_apart). Off: over 4 seeds of the following protocol (device
+# machine, docs/pedestrians.md "Keeping people apart without slowing the crowd") success went 0.573 -> 0.611
+# with social-force targets but falls 0.012 -> 0.039 and agent contacts 0.085 -> 0.218, and 0.659 -> 0.544
+# with diffusion targets.
 KEEP_APART = False
 
 

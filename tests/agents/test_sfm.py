@@ -179,3 +179,32 @@ def test_each_obstacle_pushes_once_from_its_nearest_point() -> None:
     expected = PARAMS.A_wall / PARAMS.B_wall * np.exp(-(d - 0.3) / PARAMS.B_wall)
     np.testing.assert_allclose(grouped[0], [0.0, -expected], rtol=1e-6, atol=1e-9)
     assert np.linalg.norm(per_edge) > 2 * np.linalg.norm(grouped)
+
+
+def test_keep_apart_is_checked() -> None:
+    with pytest.raises(ValueError, match="keep_apart"):
+        SocialForceParams(keep_apart=-0.1)
+    with pytest.raises(ValueError, match="keep_range"):
+        SocialForceParams(keep_range=0.0)
+
+
+def test_keep_apart_leaves_the_social_repulsion_and_holds_the_room() -> None:
+    radius, dt = 0.3, 0.1
+    keep = SocialForceParams(keep_apart=0.1)
+    # at 2 m the push is nil: the same forces as the bare radii, about half those of radii widened by 0.1 m
+    pos, vel = np.array([[-1.0, 0.0], [1.0, 0.0]]), np.array([[1.0, 0.0], [-1.0, 0.0]])
+    bare = social_forces(pos, vel, vel, radius, PARAMS).people
+    np.testing.assert_allclose(social_forces(pos, vel, vel, radius, keep).people, bare, atol=1e-9)
+    wide = social_forces(pos, vel, vel, radius + 0.1, PARAMS).people
+    np.testing.assert_allclose(np.linalg.norm(wide, axis=1) / np.linalg.norm(bare, axis=1), np.exp(0.2 / 0.3), rtol=1e-6)
+    # two people pulled at one point (2 m/s): on bare radii they end up within 2 x 0.1 m of touching;
+    # the push holds that room
+    closest = {}
+    for name, params in (("bare", PARAMS), ("keep", keep)):
+        pos, goal, vel = np.array([[-2.0, 0.0], [2.0, 0.0]]), np.zeros((2, 2)), np.zeros((2, 2))
+        closest[name] = np.inf
+        for _ in range(100):
+            vel = social_force_velocities(pos, vel, _pref_towards(pos, goal, 2.0, dt), radius, 2.0, dt, params, None)
+            pos = pos + dt * vel
+            closest[name] = min(closest[name], float(np.linalg.norm(pos[0] - pos[1])))
+    assert closest["bare"] < 2 * radius + 2 * 0.1 <= closest["keep"]
