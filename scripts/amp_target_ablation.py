@@ -19,9 +19,8 @@ rollouts' speed-up limit; 0 = off; left out = the module's defaults); empty TRIM
 the policy's own. A tenth field GRADED turns the graded wall margin of the rollouts on (1) or off (0)
 (``GRADED_WALL_MARGIN``: less wall margin in doors too narrow for it; left out or empty = the module's default, on).
 An eleventh field SKIP does the same for ``SKIP_PASSED_WAYPOINTS`` (moving past waypoints a body has passed
-while it sees the next one; default off), and a twelfth field KEEP sets how the rollouts keep their people margin:
-1 = ``KEEP_APART`` (held by a short-range push instead of a wider radius), ``approach`` = ``APPROACH_MARGIN``
-(only between people who close in), 0 = on the radius (the default).
+while it sees the next one; default off), and a twelfth field KEEP for ``KEEP_APART`` (the people margin of the
+rollouts held by a short-range push instead of a wider radius).
 ``--crowd`` picks the crowd model that makes the targets (default ``sfm``), and
 ``--diffusion-set K=V,...`` changes the diffusion crowd's settings in every run (names as in
 ``navzoo eval crowd-matched --diffusion-set``).
@@ -57,12 +56,10 @@ def parse_config(text: str) -> dict:
            "accel": float(parts[8]) if len(parts) >= 9 and parts[8] else None,
            "graded": {"1": True, "0": False}.get(parts[9]) if len(parts) >= 10 and parts[9] else None,
            "skip": {"1": True, "0": False}.get(parts[10]) if len(parts) >= 11 and parts[10] else None,
-           "keep": {"1": True, "0": False, "approach": "approach"}.get(parts[11]) if len(parts) == 12 and parts[11]
-           else None}
+           "keep": {"1": True, "0": False}.get(parts[11]) if len(parts) == 12 and parts[11] else None}
     for field, i in (("GRADED", 9), ("SKIP", 10), ("KEEP", 11)):
         if len(parts) > i and parts[i] and cfg[field.lower()] is None:
-            raise ValueError(f"{field} must be 1 or 0{' or approach' if field == 'KEEP' else ''}, got {parts[i]!r} "
-                             f"in {text!r}")
+            raise ValueError(f"{field} must be 1 or 0, got {parts[i]!r} in {text!r}")
     if cfg["policy"] is not None and not (Path(cfg["policy"]) / "config.json").is_file():
         raise ValueError(f"no exported AMP policy (config.json) in {cfg['policy']!r}, in {text!r}")
     flags = parts[5].strip() if len(parts) >= 6 else "0"
@@ -125,8 +122,7 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
     if cfg.get("skip") is not None:
         ah.SKIP_PASSED_WAYPOINTS = cfg["skip"]
     if cfg.get("keep") is not None:
-        ah.KEEP_APART = cfg["keep"] is True
-        ah.APPROACH_MARGIN = cfg["keep"] == "approach"
+        ah.KEEP_APART = cfg["keep"]
     from navzoo.benchmark.pedestrians import follow_scene
 
     row = follow_scene(scene, n, seconds, seed, env_overrides=env_overrides(cfg["env_flags"]),

@@ -139,10 +139,3 @@ def test_kinematic_body_runs_are_their_own_sample(tmp_path):
     f.write_text("".join(json.dumps(r) + "\n" for r in rows))
     lines = ablation.summary(str(f)).splitlines()[2:]
     assert [line.endswith("| n/a |") for line in lines] == [True, False]
-
-
-def test_the_people_margin_field_takes_approach():
-    assert ablation.parse_config("c:0.1:0.1:4:2.0:0::::1::approach")["keep"] == "approach"
-    assert ablation.parse_config("c:0.1:0.1:4:2.0:0::::1::1")["keep"] is True
-    with pytest.raises(ValueError, match="KEEP must be 1 or 0 or approach"):
-        ablation.parse_config("c:0.1:0.1:4:2.0:0::::1::sometimes")

@@ -238,24 +238,22 @@ def test_skipping_passed_waypoints_is_an_env_option_off_by_default():
         env.close()
 
 
-@pytest.mark.parametrize("mode", ["KEEP_APART", "APPROACH_MARGIN"])
-def test_people_margin_modes_do_not_push_side_by_side_walkers_aside(mode):
-    """Two people walking side by side 0.9 m apart: rollouts on radii widened by the margin push them apart.
-    With KEEP_APART the social repulsion is that of the bare discs and a push keeps the margin; with
-    APPROACH_MARGIN people who do not close in keep the bare discs."""
+def test_keep_apart_rollouts_hold_the_margin_without_pushing_walkers_aside():
+    """Two people walking side by side 0.9 m apart: rollouts on radii widened by the margin push them apart;
+    with KEEP_APART the social repulsion is that of the bare discs, and the push keeps the margin."""
     import navzoo.envs.amp_humans as ah
     from navzoo.envs.nav_env import NavEnv
 
-    def rollouts(on: bool) -> np.ndarray:
-        old = getattr(ah, mode)
-        setattr(ah, mode, on)
+    def rollouts(keep: bool) -> np.ndarray:
+        old = ah.KEEP_APART
+        ah.KEEP_APART = keep
         env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=2, human_model="amp", dt=1.0 / 30.0)
         try:
             env.reset(seed=0, options={"human_starts": [[-3.0, 0.45], [-3.0, -0.45]],
                                        "human_goals": [[3.0, 0.45], [3.0, -0.45]]})
             return env.amp.paths.copy()
         finally:
-            setattr(ah, mode, old)
+            ah.KEEP_APART = old
             env.close()
 
     wide, keep = rollouts(False), rollouts(True)

@@ -85,12 +85,6 @@ class SocialForceParams:
             (the default). navzoo choice, for the target rollouts of physics pedestrians, whose
             swinging limbs reach beyond their discs.
         keep_range: Range (m) of the keep-apart repulsion. navzoo choice: 0.05.
-        approach_margin: Room (m) added to each radius of a pair in proportion to how fast the two close
-            in: ``2 approach_margin min(1, max(0, closing speed) / approach_speed)`` on the contact
-            distance of the social repulsion. People passing head-on keep the full room; people walking
-            side by side or one behind the other, who close in at no speed, keep the bare radii. 0 = off
-            (the default). navzoo choice, for the target rollouts of physics pedestrians.
-        approach_speed: Closing speed (m/s) at which the full approach margin applies. navzoo choice: 1.0.
     """
 
     tau: float = 0.5
@@ -106,12 +100,10 @@ class SocialForceParams:
     max_substep: float = 0.1
     keep_apart: float = 0.0
     keep_range: float = 0.05
-    approach_margin: float = 0.0
-    approach_speed: float = 1.0
 
     def __post_init__(self) -> None:
-        positive = ("tau", "B", "B_wall", "neighbor_dist", "max_accel", "max_substep", "keep_range", "approach_speed")
-        non_negative = ("A", "A_wall", "step_time", "side_bias", "keep_apart", "approach_margin")
+        positive = ("tau", "B", "B_wall", "neighbor_dist", "max_accel", "max_substep", "keep_range")
+        non_negative = ("A", "A_wall", "step_time", "side_bias", "keep_apart")
         for f in fields(self):
             value = getattr(self, f.name)
             if not np.isfinite(value):
@@ -219,9 +211,6 @@ def _interaction(
 
     # Radius-aware potential V = A exp(-(b - R) / B): -dV/db = (A / B) exp(-(b - R) / B).
     contact = radius[:, None] + radius_j[None, :]
-    if params.approach_margin > 0.0:  # more room between people who close in (see SocialForceParams)
-        closing = np.einsum("nkd,nkd->nk", vel_j[None, :, :] - vel[:, None, :], u)  # (v_j - v_i) . u_ji
-        contact = contact + 2.0 * params.approach_margin * np.clip(closing / params.approach_speed, 0.0, 1.0)
     magnitude = (params.A / params.B) * np.exp(np.minimum(-(b - contact) / params.B, 50.0))
     force = magnitude[..., None] * grad_b  # (N, K, 2)
 

@@ -103,9 +103,6 @@ SKIP_PASSED_WAYPOINTS = False
 # with social-force targets but falls 0.012 -> 0.039 and agent contacts 0.085 -> 0.218, and 0.659 -> 0.544
 # with diffusion targets.
 KEEP_APART = False
-# Or the people margin only between people who close in (SocialForceParams.approach_margin): passing
-# head-on keeps the full 0.1 m, walking side by side or in line keeps none.
-APPROACH_MARGIN = False
 
 
 # Social force turns a disc toward a new direction as fast as its relaxation allows: at a trip's
@@ -286,7 +283,6 @@ class AmpHumans:
         self.fallen = np.zeros(self.n, dtype=bool)
         self.sfm = SocialForceParams()
         self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN)
-        self.sfm_approach = SocialForceParams(approach_margin=PLAN_MARGIN)
         model = env.config.crowd_model
         self.orca = OrcaParams(right_bias=0.0, one_step_safety=False) if model == "orca_rvo2" else OrcaParams()
         self._index = {b: j for j, b in enumerate(self.ids)}
@@ -332,11 +328,9 @@ class AmpHumans:
         wp_index = env.wp_index[h].copy()
         paths = [env.paths[i] for i in h]
         rad = env.radius[h] + PLAN_MARGIN  # an articulated body swings beyond its disc: plan with room to spare
-        sf_rad, sf_params = rad, self.sfm
-        if KEEP_APART:  # the room is held by a short-range push, the social repulsion is that of the bare discs
-            sf_rad, sf_params = env.radius[h], self.sfm_keep
-        elif APPROACH_MARGIN:  # the room only between people who close in
-            sf_rad, sf_params = env.radius[h], self.sfm_approach
+        keep = KEEP_APART and env.config.crowd_model in ("sfm", "diffusion")
+        # keep apart: the room is held by a short-range push, the social repulsion is that of the bare discs
+        sf_rad, sf_params = (env.radius[h], self.sfm_keep) if keep else (rad, self.sfm)
         graded = GRADED_WALL_MARGIN and WALL_PLAN_MARGIN > 0.0 and env.config.crowd_model in ("sfm", "diffusion")
         narrow = self.narrow_passages(paths, env.radius[h]) if graded else None
         wall_rad = env.radius[h] + WALL_PLAN_MARGIN

@@ -208,24 +208,3 @@ def test_keep_apart_leaves_the_social_repulsion_and_holds_the_room() -> None:
             pos = pos + dt * vel
             closest[name] = min(closest[name], float(np.linalg.norm(pos[0] - pos[1])))
     assert closest["bare"] < 2 * radius + 2 * 0.1 <= closest["keep"]
-
-
-def test_approach_margin_widens_only_between_people_who_close_in() -> None:
-    with pytest.raises(ValueError, match="approach_margin"):
-        SocialForceParams(approach_margin=-0.1)
-    with pytest.raises(ValueError, match="approach_speed"):
-        SocialForceParams(approach_speed=0.0)
-    approach = SocialForceParams(approach_margin=0.1)
-    radius, pos = 0.3, np.array([[-0.5, 0.0], [0.5, 0.0]])
-
-    def people(params, vel, r=radius):
-        return social_forces(pos, vel, vel, r, params).people
-
-    side_by_side = np.array([[0.0, 1.2], [0.0, 1.2]])  # same velocity: no closing, the bare radii
-    np.testing.assert_allclose(people(approach, side_by_side), people(PARAMS, side_by_side), atol=1e-12)
-    head_on = np.array([[0.6, 0.0], [-0.6, 0.0]])  # closing at 1.2 m/s >= approach_speed: the full margin
-    np.testing.assert_allclose(people(approach, head_on), people(PARAMS, head_on, radius + 0.1), rtol=1e-9)
-    parting = -head_on  # moving apart: no margin
-    np.testing.assert_allclose(people(approach, parting), people(PARAMS, parting), atol=1e-12)
-    slow = 0.25 * head_on  # closing at 0.3 m/s: 30 % of the margin
-    np.testing.assert_allclose(people(approach, slow), people(PARAMS, slow, radius + 0.03), rtol=1e-9)
