@@ -24,40 +24,23 @@ from navzoo.benchmark import pedestrians as P
 
 def probe(scene: str, people: int, speed: float, seconds: float, seed: int) -> dict:
     wrapped, env = P._make(scene, people, "amp", seconds, seed, None, "sfm", env_overrides={"human_speed": (speed, speed)})
-    amp, h, R = env.amp, np.arange(env.n_robots, env.n_total), env.n_robots
+    amp, h = env.amp, np.arange(env.n_robots, env.n_total)
     hz = 1.0 / env.config.dt
-    start = np.zeros(people)
-    limit = 2.0 * env.shortest_path_length[h] / env.v_pref[h] + 10.0
-    goals = env.goals_reached[h].copy()
-    max_err = np.zeros(people)
-    done = np.zeros(people, dtype=bool)
+    trips = P.Trips(env, people)
     ended = {"success": 0, "off_path": 0, "fall": 0, "timeout": 0}
     tgt_v, body_v, lag = [], [], []
+    rows = np.arange(people)
     while not env._needs_reset:
         wrapped.step({})
-        t = env.sim_time
         k = np.minimum(amp.k_prog, amp.path_len - 2)
-        rows = np.arange(people)
         v_target = np.linalg.norm(amp.paths[rows, k + 1] - amp.paths[rows, k], axis=1) * hz
-        target = amp.target_now()
-        err = np.linalg.norm(env.pos[h] - target, axis=1)
-        ok = ~env.human_fallen & ~done & (t - start > 1.0)
+        err = np.linalg.norm(env.pos[h] - amp.target_now(), axis=1)
+        ok = ~env.human_fallen & ~trips.done & (env.sim_time - trips.start > 1.0)
         tgt_v.append(v_target[ok])
         body_v.append(np.linalg.norm(env.vel[h][ok], axis=1))
         lag.append(err[ok])
-        max_err = np.where(~env.human_fallen, np.maximum(max_err, err), max_err)
-        out = np.full(people, "", dtype=object)
-        out[env.human_fallen & ~done] = "fall"
-        at_goal = (env.goals_reached[h] > goals) & ~done & (out == "")
-        out[at_goal] = np.where(max_err[at_goal] < 0.5, "success", "off_path")
-        out[~done & (out == "") & (t - start > limit)] = "timeout"
-        for j in np.flatnonzero(out != ""):
-            ended[out[j]] += 1
-            max_err[j] = 0.0
-            start[j] = t
-            limit[j] = 2.0 * P.remaining_path_length(env, R + j) / env.v_pref[R + j] + 10.0
-            done[j] |= out[j] == "fall"
-        goals = env.goals_reached[h].copy()
+        for _, outcome, _, _ in trips.update(err, env.human_fallen):
+            ended[outcome] += 1
     wrapped.close()
     tv, bv, lg = (np.concatenate(x) for x in (tgt_v, body_v, lag))
     return {"scene": scene, "people": people, "speed": speed, "seed": seed,

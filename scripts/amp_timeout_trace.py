@@ -52,32 +52,21 @@ def main(argv: list[str] | None = None) -> int:
     n, R = args.people, env.n_robots
     h = np.arange(R, env.n_total)
     hz = 1.0 / env.config.dt
-    start = np.zeros(n)
-    limit = 2.0 * env.shortest_path_length[h] / env.v_pref[h] + 10.0
-    goals = env.goals_reached[h].copy()
-    done = np.zeros(n, dtype=bool)
-    max_err = np.zeros(n)
+    trips = P.Trips(env, n)
     pos_h, tgt_h, map_h, agent_h = [], [], [], []
     while not env._needs_reset:
         wrapped.step({})
-        t = env.sim_time
         target = env.amp.target_now() if amp else env.pos[h]
         fallen = env.human_fallen if amp else np.zeros(n, dtype=bool)
         pos_h.append(env.pos[h].copy())
         tgt_h.append(np.array(target, dtype=float))
         map_h.append(np.array(env.human_map_contact if amp else np.zeros(n), dtype=bool))
         agent_h.append(np.array(env.human_agent_contact if amp else np.zeros(n), dtype=bool))
-        max_err = np.where(~fallen, np.maximum(max_err, np.linalg.norm(env.pos[h] - target, axis=1)), max_err)
-        out = np.full(n, "", dtype=object)
-        out[fallen & ~done] = "fall"
-        at_goal = (env.goals_reached[h] > goals) & ~done & (out == "")
-        out[at_goal] = np.where(max_err[at_goal] < 0.5, "success", "off_path")
-        out[~done & (out == "") & (t - start > limit)] = "timeout"
-        for j in np.flatnonzero(out != ""):
-            rec = {"t": round(t, 1), "person": int(j), "outcome": out[j], "duration_s": round(t - start[j], 1),
-                   "limit_s": round(float(limit[j]), 1)}
-            if out[j] == "timeout":
-                k0 = max(0, len(pos_h) - int(round((t - start[j]) * hz)))
+        for j, outcome, duration, limit in trips.update(np.linalg.norm(env.pos[h] - target, axis=1), fallen):
+            rec = {"t": round(env.sim_time, 1), "person": j, "outcome": outcome, "duration_s": round(duration, 1),
+                   "limit_s": round(limit, 1)}
+            if outcome == "timeout":
+                k0 = max(0, len(pos_h) - int(round(duration * hz)))
                 p_ = np.array(pos_h[k0:])[:, j]
                 q_ = np.array(tgt_h[k0:])[:, j]
                 vp = np.linalg.norm(np.diff(p_, axis=0), axis=1) * hz
@@ -95,12 +84,6 @@ def main(argv: list[str] | None = None) -> int:
                     person_contact=round(float(np.array(agent_h[k0:])[:, j].mean()), 2),
                     obstacle_m=round(float(env.grid.distance_at(env.pos[h][j][None])[0]), 2))
             print(json.dumps(rec), flush=True)
-            max_err[j] = 0.0
-            start[j] = t
-            limit[j] = 2.0 * P.remaining_path_length(env, R + j) / env.v_pref[R + j] + 10.0
-            if out[j] == "fall":
-                done[j] = True
-        goals = env.goals_reached[h].copy()
     wrapped.close()
     return 0
 

@@ -125,6 +125,52 @@ def remaining_path_length(env, i: int) -> float:
     return _path_length(path[min(int(env.wp_index[i]), len(path) - 1):], env.pos[i])
 
 
+class Trips:
+    """The trip bookkeeping of the following protocol, for the ``n`` pedestrians of ``env``.
+
+    A trip starts at the episode's start or where the person's previous trip ended. It ends at its goal
+    (``"success"`` when the path error stayed below 0.5 m throughout, else ``"off_path"``), in a fall
+    (``"fall"``; the person is then done for the rest of the scene) or when it has taken longer than
+    ``2 x path / preferred speed + 10 s`` (``"timeout"``). The path of a new trip is the one just planned
+    after a goal, or what is left of the same path after a timeout (:func:`remaining_path_length`).
+    """
+
+    def __init__(self, env, n: int) -> None:
+        self.env, self.n, self.R = env, n, env.n_robots
+        h = np.arange(self.R, self.R + n)
+        self.start = np.zeros(n)  # sim time each current trip started
+        self.limit = 2.0 * env.shortest_path_length[h] / env.v_pref[h] + 10.0
+        self.done = np.zeros(n, dtype=bool)  # fallen: no more trips
+        self.max_err = np.zeros(n)
+        self._goals = env.goals_reached[h].copy()
+
+    def update(self, err: np.ndarray | None, fallen: np.ndarray) -> list[tuple[int, str, float, float]]:
+        """After an env step: fold this step's path error (None: no target trajectory) of the standing
+        people into their trips, end the trips that ended; returns ``(person, outcome, duration_s,
+        limit_s)`` of each, with the next trip already started."""
+        env, R, n = self.env, self.R, self.n
+        t = env.sim_time
+        live = ~self.done
+        if err is not None:
+            self.max_err = np.where(live & ~fallen, np.maximum(self.max_err, err), self.max_err)
+        goals = env.goals_reached[R:R + n]
+        outcome = np.full(n, "", dtype=object)
+        outcome[fallen & live] = "fall"
+        at_goal = (goals > self._goals) & live & (outcome == "")
+        outcome[at_goal] = np.where(self.max_err[at_goal] < 0.5, "success", "off_path")
+        outcome[live & (outcome == "") & (t - self.start > self.limit)] = "timeout"
+        ended = []
+        for j in np.flatnonzero(outcome != ""):
+            ended.append((int(j), str(outcome[j]), t - float(self.start[j]), float(self.limit[j])))
+            self.max_err[j] = 0.0
+            self.start[j] = t
+            self.limit[j] = 2.0 * remaining_path_length(env, R + j) / env.v_pref[R + j] + 10.0
+            if outcome[j] == "fall":
+                self.done[j] = True
+        self._goals = goals.copy()
+        return ended
+
+
 def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, policy_dir: str | None = None,
                  pose_every: int = 1, max_poses: int = 20_000, crowd_model: str = "sfm",
                  human_model: str = "amp", env_overrides: dict[str, Any] | None = None,
@@ -147,13 +193,10 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
     has_target = amp or env.diffusion is not None
     R = env.n_robots
     h = np.arange(R, env.n_total)
-    start = np.zeros(n)
-    limit = 2.0 * env.shortest_path_length[h] / env.v_pref[h] + 10.0
+    trips = Trips(env, n)
+    done = trips.done
     m_flag = np.zeros(n, dtype=bool)
     a_flag = np.zeros(n, dtype=bool)
-    max_err = np.zeros(n)
-    goals = env.goals_reached[h].copy()
-    done = np.zeros(n, dtype=bool)
     ended = {"success": 0, "off_path": 0, "fall": 0, "timeout": 0}
     map_trips = agent_trips = 0
     err_sum, err_n = 0.0, 0
@@ -162,7 +205,6 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
     while not env._needs_reset:
         wrapped.step({})
         steps += 1
-        t = env.sim_time
         live = ~done
         if amp:
             map_now, agent_now, fallen = env.human_map_contact, env.human_agent_contact, env.human_fallen
@@ -172,31 +214,20 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
         a_flag |= agent_now & live
         standing = live & ~fallen
         target = target_points(env) if has_target else None
+        err = None
         if target is not None:
             err = np.linalg.norm(env.pos[h] - target, axis=1)
-            max_err = np.where(standing, np.maximum(max_err, err), max_err)
             err_sum += float(err[standing].sum())
             err_n += int(standing.sum())
         if pose_every and steps % pose_every == 0 and n_poses < max_poses and standing.any():
             kp = body_keypoints(env.client, [body_ids[j] for j in np.flatnonzero(standing)])
             poses.append(realism.normalize_poses(kp))
             n_poses += len(kp)
-        outcome = np.full(n, "", dtype=object)
-        outcome[fallen & live] = "fall"
-        at_goal = (env.goals_reached[h] > goals) & live & (outcome == "")
-        outcome[at_goal] = np.where(max_err[at_goal] < 0.5, "success", "off_path")
-        outcome[live & (outcome == "") & (t - start > limit)] = "timeout"
-        for j in np.flatnonzero(outcome != ""):
-            ended[outcome[j]] += 1
+        for j, outcome, _, _ in trips.update(err, fallen):
+            ended[outcome] += 1
             map_trips += int(m_flag[j])
             agent_trips += int(a_flag[j])
             m_flag[j] = a_flag[j] = False
-            max_err[j] = 0.0
-            start[j] = t
-            limit[j] = 2.0 * remaining_path_length(env, R + j) / env.v_pref[R + j] + 10.0
-            if outcome[j] == "fall":
-                done[j] = True
-        goals = env.goals_reached[h].copy()
     wrapped.close()
     label = "" if (crowd_model, human_model) == ("sfm", "amp") else f" [{crowd_model}+{human_model}]"
     print(f"following{label} {scene} ({n} pedestrians, {seconds:.0f} s): {ended} in {time.time() - t0:.0f} s",
