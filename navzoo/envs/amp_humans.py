@@ -328,9 +328,8 @@ class AmpHumans:
         wp_index = env.wp_index[h].copy()
         paths = [env.paths[i] for i in h]
         rad = env.radius[h] + PLAN_MARGIN  # an articulated body swings beyond its disc: plan with room to spare
-        keep = KEEP_APART and env.config.crowd_model in ("sfm", "diffusion")
         # keep apart: the room is held by a short-range push, the social repulsion is that of the bare discs
-        sf_rad, sf_params = (env.radius[h], self.sfm_keep) if keep else (rad, self.sfm)
+        sf_rad, sf_params = (env.radius[h], self.sfm_keep) if KEEP_APART else (rad, self.sfm)
         graded = GRADED_WALL_MARGIN and WALL_PLAN_MARGIN > 0.0 and env.config.crowd_model in ("sfm", "diffusion")
         narrow = self.narrow_passages(paths, env.radius[h]) if graded else None
         wall_rad = env.radius[h] + WALL_PLAN_MARGIN
