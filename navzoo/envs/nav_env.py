@@ -437,6 +437,11 @@ class NavEnv(ParallelEnv):
             self._fallen_planners[radius] = AStarPlanner(self._fallen_grid, radius)
         return self._fallen_planners[radius]
 
+    def _planner_for(self, i: int):
+        """Agent ``i``'s planner factory (radius -> AStarPlanner): pedestrians plan around fallen bodies
+        once there are any (``human_fallen_obstacles``), robots on the bare scene grid."""
+        return self._fallen_planner if i >= self.n_robots and self._fallen_grid is not None else self._planner
+
     def _plan(self, i: int, start: np.ndarray, goal: np.ndarray, fallback: bool = True) -> np.ndarray | None:
         """Agent ``i``'s A* path from ``start`` to ``goal`` (pedestrians around fallen bodies when the
         config asks for it); without a path, the goal alone, or None when ``fallback`` is False."""
@@ -444,8 +449,7 @@ class NavEnv(ParallelEnv):
         clearance = self.config.path_clearance
         if self.config.human_model == "amp" and i >= self.n_robots:
             clearance += AMP_PLAN_MARGIN
-        fallen = i >= self.n_robots and self._fallen_grid is not None  # people plan around fallen bodies
-        planner = self._fallen_planner if fallen else self._planner
+        planner = self._planner_for(i)
         bare = planner(float(self.radius[i]))
         if clearance > 0:
             padded = float(self.radius[i]) + clearance
@@ -458,7 +462,7 @@ class NavEnv(ParallelEnv):
             return None
         if path is not None and len(path) and self.config.human_door_entries and self.config.human_model == "amp" \
                 and i >= self.n_robots:
-            path = door_entries(path, start, self._fallen_grid if fallen else self.grid, float(self.radius[i]))
+            path = door_entries(path, start, bare.grid, float(self.radius[i]))
         if path is None or len(path) == 0:
             # No grid path (e.g. explicit start/goal given inside an inflated area): walk straight.
             return np.asarray(goal, dtype=np.float64).reshape(1, 2)
@@ -873,8 +877,7 @@ class NavEnv(ParallelEnv):
         passed (:func:`~navzoo.envs.amp_humans.advance_waypoint`); None when that is off."""
         if not amp_humans.SKIP_PASSED_WAYPOINTS:
             return None
-        fallen = i >= self.n_robots and self._fallen_grid is not None
-        planner = (self._fallen_planner if fallen else self._planner)(float(self.radius[i]))
+        planner = self._planner_for(i)(float(self.radius[i]))
         return planner.line_of_sight
 
     def _human_progress(self) -> np.ndarray:
@@ -942,7 +945,7 @@ class NavEnv(ParallelEnv):
             i = R + j
             path = self.paths[i]
             k = min(int(self.wp_index[i]), len(path) - 1)
-            planner = (self._fallen_planner if self._fallen_grid is not None else self._planner)(float(self.radius[i]))
+            planner = self._planner_for(i)(float(self.radius[i]))
             start = planner._snap(self.pos[i])
             if start is not None and planner.line_of_sight(start[0], path[k]):
                 self._wp_hidden[i] = 0.0
