@@ -165,7 +165,10 @@ def done_runs(rows: list[dict], configs: list[dict]) -> set[tuple]:
 
 def summary(path: str, by_scene: bool = False) -> str:
     """Markdown table of a result file: one line per configuration, crowd model and seed, or with
-    ``by_scene`` one line per configuration, crowd model and scene, pooling the seeds."""
+    ``by_scene`` one line per configuration, crowd model and scene, pooling the seeds; where the rows
+    hold them, a second line counts the same runs one trip per goal (``pedestrians.Trips``)."""
+    from navzoo.benchmark.pedestrians import goal_trip_rates
+
     rows = [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
     keys = ("success", "off_path", "fall", "timeout")
     lines = ["| configuration | trips | success | off path | fall | timeout | map contact | agent contact | path error (m) |",
@@ -194,6 +197,11 @@ def summary(path: str, by_scene: bool = False) -> str:
         lines.append(f"| {label} | {n} | {share['success']:.3f} | {share['off_path']:.3f} | "
                      f"{share['fall']:.3f} | {share['timeout']:.3f} | {share['map_trips']:.3f} | "
                      f"{share['agent_trips']:.3f} | {err} |")
+        if all("by_goal" in r for r in rs):  # the same runs, one trip per goal (pedestrians.Trips)
+            g = goal_trip_rates([r["by_goal"] for r in rs])
+            lines.append(f"| {label}, one trip per goal | {g['trips']} | {g['success_rate']:.3f} | "
+                         f"{g['goal_rate'] - g['success_rate']:.3f} | {g['fall_rate']:.3f} | {g['timeout_rate']:.3f} | "
+                         f"{g['map_collision_rate']:.3f} | {g['agent_collision_rate']:.3f} | |")
     return "\n".join(lines)
 
 

@@ -35,6 +35,11 @@ def test_several_seeds_pool_the_trips_and_keep_each_seeds_own_rates():
     assert multi["trips"] > 0 and all(r["trips"] > 0 for r in multi["by_seed"])
     ended = sum(r["success"] for r in multi["scenes"])
     assert multi["success_rate"] == pytest.approx(ended / multi["trips"])
+    # one trip per goal: never more trips or successes than the per-limit count, the same falls
+    goal, rows = multi["per_goal"], multi["scenes"]
+    assert 0 < goal["trips"] <= multi["trips"] and goal["success_rate"] * goal["trips"] <= ended + 1e-9
+    assert sum(r["by_goal"]["fall"] for r in rows) == sum(r["fall"] for r in rows)
+    assert multi["by_seed"][0]["per_goal"]["trips"] + multi["by_seed"][1]["per_goal"]["trips"] == goal["trips"]
     rates = [r["success_rate"] for r in multi["by_seed"]]
     assert multi["success_rate_seed_sd"] == pytest.approx(float(np.std(rates, ddof=1)))
     np.testing.assert_array_equal(poses, one[0][1])  # realism reads the first seed's poses only

@@ -133,6 +133,13 @@ class Trips:
     (``"fall"``; the person is then done for the rest of the scene) or when it has taken longer than
     ``2 x path / preferred speed + 10 s`` (``"timeout"``). The path of a new trip is the one just planned
     after a goal, or what is left of the same path after a timeout (:func:`remaining_path_length`).
+
+    It also counts *goal trips*, one per goal (``goal_ended`` after each :meth:`update`, and
+    :meth:`finish` at the scene's end): a goal trip runs from where the person got its goal to that
+    goal, or to a fall. It is a success or off-path trip when it reached the goal within its first
+    limit, a fall when the person fell on the way (also after the limit: falls are never hidden), and a
+    timeout when it passed the limit, counted once, however long the person then stays stuck. The
+    per-limit trips above count a person stuck in a jam once per limit, about every 10-15 s.
     """
 
     def __init__(self, env, n: int) -> None:
@@ -143,6 +150,11 @@ class Trips:
         self.done = np.zeros(n, dtype=bool)  # fallen: no more trips
         self.max_err = np.zeros(n)
         self._goals = env.goals_reached[h].copy()
+        self.goal_start = np.zeros(n)  # the goal trips: one per goal
+        self.goal_limit = self.limit.copy()
+        self.goal_max_err = np.zeros(n)
+        self.goal_late = np.zeros(n, dtype=bool)  # past its limit, not yet at its goal
+        self.goal_ended: list[tuple[int, str]] = []  # the goal trips that ended in the last update
 
     def update(self, err: np.ndarray | None, fallen: np.ndarray) -> list[tuple[int, str, float, float]]:
         """After an env step: fold this step's path error (None: no target trajectory) of the standing
@@ -153,11 +165,14 @@ class Trips:
         live = ~self.done
         if err is not None:
             self.max_err = np.where(live & ~fallen, np.maximum(self.max_err, err), self.max_err)
+            self.goal_max_err = np.where(live & ~fallen & ~self.goal_late, np.maximum(self.goal_max_err, err),
+                                         self.goal_max_err)
         goals = env.goals_reached[R:R + n]
         outcome = np.full(n, "", dtype=object)
         outcome[fallen & live] = "fall"
         at_goal = (goals > self._goals) & live & (outcome == "")
         outcome[at_goal] = np.where(self.max_err[at_goal] < 0.5, "success", "off_path")
+        self._end_goal_trips(t, at_goal, fallen & live)
         outcome[live & (outcome == "") & (t - self.start > self.limit)] = "timeout"
         ended = []
         for j in np.flatnonzero(outcome != ""):
@@ -169,6 +184,30 @@ class Trips:
                 self.done[j] = True
         self._goals = goals.copy()
         return ended
+
+    def _end_goal_trips(self, t: float, at_goal: np.ndarray, fell: np.ndarray) -> None:
+        """Fold this step into the goal trips (see the class docstring)."""
+        self.goal_ended = []
+        for j in np.flatnonzero(fell | at_goal):
+            if fell[j]:
+                out = "fall"
+            elif self.goal_late[j] or t - self.goal_start[j] > self.goal_limit[j]:
+                out = "timeout"
+            else:
+                out = "success" if self.goal_max_err[j] < 0.5 else "off_path"
+            self.goal_ended.append((int(j), out))
+            if not fell[j]:  # the next goal's trip, on the path just planned
+                self.goal_start[j] = t
+                self.goal_limit[j] = 2.0 * remaining_path_length(self.env, self.R + j) / self.env.v_pref[self.R + j] + 10.0
+                self.goal_max_err[j] = 0.0
+                self.goal_late[j] = False
+        self.goal_late |= ~self.done & ~fell & (t - self.goal_start > self.goal_limit)
+
+    def finish(self) -> list[int]:
+        """At the scene's end: the people whose goal trip is past its limit (their trips end as timeouts;
+        goal trips still within their limit are not counted, as trips under way)."""
+        late = self.goal_late | (~self.done & (self.env.sim_time - self.goal_start > self.goal_limit))
+        return [int(j) for j in np.flatnonzero(late & ~self.done)]
 
 
 def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, policy_dir: str | None = None,
@@ -199,6 +238,9 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
     a_flag = np.zeros(n, dtype=bool)
     ended = {"success": 0, "off_path": 0, "fall": 0, "timeout": 0}
     map_trips = agent_trips = 0
+    by_goal = dict.fromkeys(("success", "off_path", "fall", "timeout", "map_trips", "agent_trips"), 0)
+    m_goal = np.zeros(n, dtype=bool)  # contacts during each person's goal trip
+    a_goal = np.zeros(n, dtype=bool)
     err_sum, err_n = 0.0, 0
     poses: list[np.ndarray] = []
     n_poses = steps = 0
@@ -212,6 +254,8 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
             (map_now, agent_now), fallen = kinematic_contacts(env), np.zeros(n, dtype=bool)
         m_flag |= map_now & live
         a_flag |= agent_now & live
+        m_goal |= map_now & live
+        a_goal |= agent_now & live
         standing = live & ~fallen
         target = target_points(env) if has_target else None
         err = None
@@ -228,6 +272,10 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
             map_trips += int(m_flag[j])
             agent_trips += int(a_flag[j])
             m_flag[j] = a_flag[j] = False
+        for j, outcome in trips.goal_ended:
+            _count_goal_trip(by_goal, outcome, m_goal, a_goal, j)
+    for j in trips.finish():
+        _count_goal_trip(by_goal, "timeout", m_goal, a_goal, j)
     wrapped.close()
     label = "" if (crowd_model, human_model) == ("sfm", "amp") else f" [{crowd_model}+{human_model}]"
     print(f"following{label} {scene} ({n} pedestrians, {seconds:.0f} s): {ended} in {time.time() - t0:.0f} s",
@@ -235,9 +283,17 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
     return {
         "scene": scene, "pedestrians": n, **ended, "map_trips": map_trips, "agent_trips": agent_trips,
         "err_sum": err_sum, "err_n": err_n, "path_error": has_target, "running": int((~done).sum()),
+        "by_goal": by_goal,
         "wall_s": round(time.time() - t0, 1),
         "poses": np.concatenate(poses) if poses else np.zeros((0, realism.POSE_DIM)),
     }
+
+
+def _count_goal_trip(counts: dict[str, int], outcome: str, m_goal: np.ndarray, a_goal: np.ndarray, j: int) -> None:
+    counts[outcome] += 1
+    counts["map_trips"] += int(m_goal[j])
+    counts["agent_trips"] += int(a_goal[j])
+    m_goal[j] = a_goal[j] = False
 
 
 def _pool_map(fn, jobs: list[tuple], workers: int) -> list[Any]:
@@ -405,7 +461,7 @@ def remove_resume_files(resume: Path) -> None:
 
 
 _SEED_KEYS = ("success_rate", "goal_rate", "fall_rate", "map_collision_rate", "agent_collision_rate", "path_error_m",
-              "timeout_rate", "trips")
+              "timeout_rate", "trips", "per_goal")
 
 
 def check_seeds(seeds: Any) -> list[int]:
@@ -448,10 +504,21 @@ def _following_metrics(rows: list[dict[str, Any]], seconds: float) -> dict[str, 
         "timeout_rate": sum(r["timeout"] for r in rows) / total,
         "trips": n_trips,
         "trips_running": sum(r["running"] for r in rows),
+        "per_goal": goal_trip_rates([r["by_goal"] for r in rows]) if all("by_goal" in r for r in rows) else None,
         "seconds_per_scene": seconds,
         "scenes": [{k: r[k] for k in ("seed", "scene", "pedestrians", "success", "off_path", "fall", "timeout",
-                                      "map_trips", "agent_trips", "wall_s") if k in r} for r in rows],
+                                      "map_trips", "agent_trips", "by_goal", "wall_s") if k in r} for r in rows],
     }
+
+
+def goal_trip_rates(counts: list[dict[str, int]]) -> dict[str, Any]:
+    """Rates of the goal trips (one per goal, :class:`Trips`) pooled over scene rows' ``by_goal`` counts."""
+    n = sum(c["success"] + c["off_path"] + c["fall"] + c["timeout"] for c in counts)
+    rate = {k: sum(c[k] for c in counts) / max(1, n)
+            for k in ("success", "off_path", "fall", "timeout", "map_trips", "agent_trips")}
+    return {"success_rate": rate["success"], "goal_rate": rate["success"] + rate["off_path"],
+            "fall_rate": rate["fall"], "map_collision_rate": rate["map_trips"],
+            "agent_collision_rate": rate["agent_trips"], "timeout_rate": rate["timeout"], "trips": n}
 
 
 def _kinematic_scene(scene: str, n: int, seconds: float, seed: int, max_poses: int) -> np.ndarray:
@@ -595,6 +662,10 @@ def markdown(result: dict[str, Any]) -> str:
     fo = result["following"]
     lines.append(f"| goal_rate / timeout_rate | {f(fo['goal_rate'])} / {f(fo['timeout_rate'])} | |")
     lines.append(f"| trips (running at the end) | {fo['trips']} ({fo['trips_running']}) | |")
+    if fo.get("per_goal"):
+        g = fo["per_goal"]
+        lines.append(f"| one trip per goal: success / fall / timeout (trips) | {f(g['success_rate'])} / "
+                     f"{f(g['fall_rate'])} / {f(g['timeout_rate'])} ({g['trips']}) | |")
     if "by_seed" in fo:
         sd = fo["success_rate_seed_sd"]
         lines.append(f"| seeds (success sd between seeds) | {', '.join(map(str, fo['seeds']))} "
