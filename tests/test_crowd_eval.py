@@ -197,5 +197,6 @@ def test_reliability_rows_over_several_seeds_resume_their_scene_runs(tmp_path, m
     monkeypatch.setattr(ce.pedestrians, "follow_scene", real)
     text = ce.markdown({"reliability": {"sfm+kinematic": again}})
     assert "| sfm+kinematic, seed 1 |" in text
+    assert f"| sfm+kinematic, one trip per goal | {100 * again['per_goal']['success_rate']:.2f} |" in text
     with pytest.raises(SystemExit, match="not both"):
         ce.main(["--seed", "2", "--seeds", "0,1"])

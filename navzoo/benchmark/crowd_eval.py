@@ -658,6 +658,9 @@ def markdown(result: dict[str, Any]) -> str:
         for name, row in rel.items():
             pct = [f(100 * row[k], 2) if row.get(k) is not None else "n/a" for k in keys[:4]]
             lines.append(f"| {name} | " + " | ".join(pct) + f" | {f(row.get('path_error_m'))} | {row.get('trips')} |")
+            if row.get("per_goal"):  # the same runs, one trip per goal (pedestrians.Trips)
+                pct = [f(100 * row["per_goal"][k], 2) for k in keys[:4]]
+                lines.append(f"| {name}, one trip per goal | " + " | ".join(pct) + f" | | {row['per_goal']['trips']} |")
             for r in row.get("by_seed", []):  # rows over several seeds: each seed under the pooled row
                 pct = [f(100 * r[k], 2) if r.get(k) is not None else "n/a" for k in keys[:4]]
                 lines.append(f"| {name}, seed {r['seed']} | " + " | ".join(pct) +
@@ -667,7 +670,8 @@ def markdown(result: dict[str, Any]) -> str:
             lines.append(f"| paper {name} | " + " | ".join(pct) + f" | {f(row['path_error_m'])} | |")
         lines.append("")
         lines.append("Rates in % of ended trips. Kinematic rows: no falls by construction, geometric contacts; "
-                     "path error n/a for the social-force crowd.")
+                     "path error n/a for the social-force crowd. \"One trip per goal\": the same runs with a "
+                     "person stuck past its time limit counted once, not once per limit.")
     c = result.get("cost", {})
     if c:
         lines += ["", "| pedestrians | " + " | ".join(k.split("_", 1)[1] + " replan (ms)" for k in ("replan_cpu", "replan_cuda")
