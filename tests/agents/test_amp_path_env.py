@@ -8,12 +8,13 @@ import signal
 import subprocess
 import sys
 import time
+from functools import partial
 
 import numpy as np
 import pytest
 
 from navzoo.agents.amp.features import FEATURE_DIM
-from navzoo.agents.amp.path_env import AmpPathEnv, PathTaskConfig
+from navzoo.agents.amp.path_env import AmpPathEnv, PathTaskConfig, reference_amp_windows
 from navzoo.agents.amp.train import locomotion_reference
 from navzoo.agents.amp.vec import SubprocAmpVecEnv
 
@@ -65,6 +66,16 @@ def test_worker_processes_match_the_protocol(reference):
         obs, rew, term, trunc, info = vec.step(np.zeros((4, vec.act_dim)))
         assert rew.shape == (4,) and info["amp_obs"].shape == (4, vec.amp_obs_dim)
         assert vec.sample_reference_amp_obs(8, np.random.default_rng(0)).shape == (8, vec.amp_obs_dim)
+        # the workers sample the reference windows, each its share, from seeds drawn from the learner's rng
+        cfg = vec.config
+        windows = partial(reference_amp_windows, reference, window=cfg.amp_window, dt=1.0 / cfg.control_hz,
+                          velocity=cfg.amp_velocity, span=cfg.amp_velocity_span)
+        seeds = np.random.default_rng(3).integers(0, 2**63 - 1, size=2)
+        want = np.concatenate([windows(k, np.random.default_rng(sd)) for k, sd in zip((5, 4), seeds, strict=True)])
+        np.testing.assert_array_equal(vec.sample_reference_amp_obs(9, np.random.default_rng(3)), want)
+        vec.shard_reference = False  # or in this process, from the rng itself
+        np.testing.assert_array_equal(vec.sample_reference_amp_obs(9, np.random.default_rng(3)),
+                                      windows(9, np.random.default_rng(3)))
         # Ctrl-C reaches the workers too (process group): they must live on for the learner's checkpoint
         for proc in vec._procs:
             os.kill(proc.pid, signal.SIGINT)

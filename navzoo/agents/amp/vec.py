@@ -5,8 +5,10 @@ processes (the device machine has 16 cores). :class:`SubprocVecEnv` runs any env
 ``AmpVecEnv`` protocol, one per worker, e.g. :class:`~navzoo.agents.amp.path_env.AmpPathEnv`
 (:class:`SubprocAmpVecEnv`: ``envs_per_worker`` humanoids each) or the pedestrians of navzoo scenes
 (:class:`navzoo.rl.amp_joint.NavAmpVecEnv`, a scene per worker). The main process concatenates their
-batches and samples the discriminator's reference windows itself. A worker that dies is reported with
-its index and the last command instead of hanging the learner.
+batches. The discriminator's reference windows are sampled by the workers, each its share, from seeds
+the learner's generator draws (:meth:`SubprocVecEnv.sample_reference_amp_obs`): in the main process
+they took as long as a third of an iteration. A worker that dies is reported with its index and the last
+command instead of hanging the learner.
 """
 
 from __future__ import annotations
@@ -42,6 +44,9 @@ def _worker(conn: Any, make_env: Callable[[], Any]) -> None:
                 conn.send(("ok", env.reset(arg)))
             elif cmd == "step":
                 conn.send(("ok", env.step(arg)))
+            elif cmd == "reference":
+                n, seed = arg
+                conn.send(("ok", np.asarray(env.sample_reference_amp_obs(n, np.random.default_rng(seed)), np.float32)))
             elif cmd == "counters":
                 conn.send(("ok", env.counters()))
             elif cmd == "reset_stats":
@@ -67,12 +72,16 @@ class SubprocVecEnv:
             function) that builds that worker's env, which has ``num_envs``, ``obs_dim``, ``act_dim``,
             ``amp_obs_dim``, ``reset`` and ``step`` (``counters`` / ``reset_stats`` if :meth:`counters` is used).
         sample_reference: ``(n, rng) -> (n, amp_obs_dim)`` reference windows for the discriminator,
-            sampled in this process (no simulation needed).
+            sampled in this process (no simulation needed) when the workers' envs cannot
+            (no ``sample_reference_amp_obs``) or with ``shard_reference=False``.
         amp_obs_version: the discriminator inputs' version (checked against checkpoints).
+        shard_reference: sample the reference windows in the workers (each env's own
+            ``sample_reference_amp_obs``, which must draw from the same reference motion as
+            ``sample_reference``).
     """
 
     def __init__(self, make_envs: list[Callable[[], Any]], sample_reference: Callable[[int, np.random.Generator], np.ndarray],
-                 amp_obs_version: Any) -> None:
+                 amp_obs_version: Any, shard_reference: bool = True) -> None:
         if not make_envs:
             raise ValueError("SubprocVecEnv needs at least one worker")
         self.workers = len(make_envs)
@@ -98,6 +107,7 @@ class SubprocVecEnv:
         self.num_envs = int(self._bounds[-1])
         self.obs_dim, self.act_dim, self.amp_obs_dim = dims[0][1:]
         self._sample_reference = sample_reference
+        self.shard_reference = bool(shard_reference)
         self.amp_obs_version = amp_obs_version
 
     def _recv(self, w: int, what: str) -> Any:
@@ -136,7 +146,18 @@ class SubprocVecEnv:
         return obs, rew, term, trunc, info
 
     def sample_reference_amp_obs(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        return self._sample_reference(n, rng)
+        """``n`` reference windows (n, amp_obs_dim). With ``shard_reference`` (and more than one worker),
+        worker ``w`` samples the ``w``-th of near-equal shares with its own generator, seeded from ``rng``
+        (one draw per worker); the windows are independent draws from the reference either way, and a
+        given ``rng`` state gives the same windows on every run (a resumed run included)."""
+        if not self.shard_reference or self.workers == 1:
+            return self._sample_reference(n, rng)
+        shares = [len(part) for part in np.array_split(np.arange(int(n)), self.workers)]
+        seeds = rng.integers(0, 2**63 - 1, size=self.workers)
+        for c, k, seed in zip(self._conns, shares, seeds, strict=True):
+            c.send(("reference", (k, int(seed))))
+        parts = [self._recv(w, "reference") for w in range(self.workers)]
+        return np.concatenate(parts).reshape(int(n), self.amp_obs_dim)
 
     def counters(self) -> list[dict[str, Any]]:
         """Every worker env's ``counters()`` (statistics since its last ``reset_stats``)."""
