@@ -24,6 +24,10 @@
 # of one scene of SCENES (comma-separated library scenes, one per worker in turn), no robots; STAGE, OBSTACLES,
 # RESET_DISC and RESUME_DIR do not apply. TRAIN_ARGS go to amp_joint train (e.g. --actor-lr, --disc-lr; a fresh
 # discriminator is --reset-disc there, e.g. with --amp-velocity-span 4).
+# The run from scratch (training/amp_scratch/README.md) on the 64-core host (kind nvidia-h100-x4), with only that
+# training folder in the tree (the device copy holds at most 64 MiB):
+#   RESUME_DIR=training/amp_scratch WORKERS=60 MINIBATCH=1920 STAGE=2 TRAIN_S=545 LIMIT_S=470 \
+#     TRAIN_ARGS="--amp-velocity-span 4 --disc-lr 2e-5 --disc-grad-penalty 50 --disc-weight-decay 5e-4 --seed S" bash scripts/device_train_amp.sh
 # INIT_DIR=DIR starts the scene training from a checkpoint returned by an earlier call (its name, meta.json and
 # state.pt.part-* files) instead of the shipped one; training/amp is then not needed and can stay behind.
 set -u
