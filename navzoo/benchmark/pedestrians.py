@@ -165,8 +165,7 @@ class Trips:
         live = ~self.done
         if err is not None:
             self.max_err = np.where(live & ~fallen, np.maximum(self.max_err, err), self.max_err)
-            self.goal_max_err = np.where(live & ~fallen & ~self.goal_late, np.maximum(self.goal_max_err, err),
-                                         self.goal_max_err)
+            self.goal_max_err = np.where(live & ~fallen, np.maximum(self.goal_max_err, err), self.goal_max_err)
         goals = env.goals_reached[R:R + n]
         outcome = np.full(n, "", dtype=object)
         outcome[fallen & live] = "fall"
