@@ -75,8 +75,11 @@ PASSAGE_REACH = 1.0  # m
 # With diffusion plans the target's current point therefore runs at most LAG_LIMIT_S ahead of the point
 # of the plan nearest to the body (progress_index).
 LAG_LIMIT_S = 0.3
-# Diffusion crowd with physics bodies: the target rollout heads for each plan's point this far ahead.
+# Diffusion crowd with physics bodies: the target rollout heads for each plan's point this far ahead (as
+# kinematic diffusion pedestrians do), at the plan's pace but at most DIFFUSION_SPEED_CAP times the
+# person's preferred speed (docs/crowd.md "Diffusion plans for physics bodies").
 DIFFUSION_LOOKAHEAD_S = 0.8
+DIFFUSION_SPEED_CAP = 1.3
 
 
 # A physics body is pushed and swerves: it can pass a waypoint of its A* path farther than the
@@ -344,7 +347,7 @@ class AmpHumans:
             # The sampled plans give the direction and pace (as for kinematic diffusion pedestrians);
             # social force rolls them out from the bodies, so bodies keep their distance.
             diffusion.plan_now(env)
-            cap = np.minimum(vmax, v_pref * 1.3)[:, None]
+            cap = np.minimum(vmax, v_pref * DIFFUSION_SPEED_CAP)[:, None]
         out = np.empty((self.n, steps + 1, 2))
         out[:, 0] = pos
         prev_vel = vel
