@@ -20,7 +20,9 @@ the policy's own. A tenth field GRADED turns the graded wall margin of the rollo
 (``GRADED_WALL_MARGIN``: less wall margin in doors too narrow for it; left out or empty = the module's default, on).
 An eleventh field SKIP does the same for ``SKIP_PASSED_WAYPOINTS`` (moving past waypoints a body has passed
 while it sees the next one; default off), and a twelfth field KEEP for ``KEEP_APART`` (the people margin of the
-rollouts held by a short-range push instead of a wider radius).
+rollouts held by a short-range push instead of a wider radius). A thirteenth field DCAP sets
+``DIFFUSION_SPEED_CAP`` (the rollouts toward diffusion plans go at most DCAP x the preferred speed; left out
+or empty = the module's default).
 ``--crowd`` picks the crowd model that makes the targets (default ``sfm``), and
 ``--diffusion-set K=V,...`` changes the diffusion crowd's settings in every run (names as in
 ``navzoo eval crowd-matched --diffusion-set``).
@@ -44,9 +46,9 @@ from pathlib import Path
 
 def parse_config(text: str) -> dict:
     parts = text.split(":")
-    if len(parts) not in (4, 5, 6, 7, 8, 9, 10, 11, 12):
+    if len(parts) not in (4, 5, 6, 7, 8, 9, 10, 11, 12, 13):
         raise ValueError("a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN[:TRIM[:POLICY[:ACCEL"
-                         "[:GRADED[:SKIP[:KEEP]]]]]]]]], "
+                         "[:GRADED[:SKIP[:KEEP[:DCAP]]]]]]]]]], "
                          f"got {text!r}")
     name, plan, wall, ahead = parts[:4]
     cfg = {"name": name, "plan_margin": float(plan), "wall_margin": float(wall), "lookahead": int(ahead),
@@ -56,7 +58,8 @@ def parse_config(text: str) -> dict:
            "accel": float(parts[8]) if len(parts) >= 9 and parts[8] else None,
            "graded": {"1": True, "0": False}.get(parts[9]) if len(parts) >= 10 and parts[9] else None,
            "skip": {"1": True, "0": False}.get(parts[10]) if len(parts) >= 11 and parts[10] else None,
-           "keep": {"1": True, "0": False}.get(parts[11]) if len(parts) == 12 and parts[11] else None}
+           "keep": {"1": True, "0": False}.get(parts[11]) if len(parts) >= 12 and parts[11] else None,
+           "dcap": float(parts[12]) if len(parts) == 13 and parts[12] else None}
     for field, i in (("GRADED", 9), ("SKIP", 10), ("KEEP", 11)):
         if len(parts) > i and parts[i] and cfg[field.lower()] is None:
             raise ValueError(f"{field} must be 1 or 0, got {parts[i]!r} in {text!r}")
@@ -78,6 +81,8 @@ def parse_config(text: str) -> dict:
     cfg["fallen_obstacles"] = "human_fallen_obstacles" in cfg["env_flags"]
     if min(cfg["plan_margin"], cfg["wall_margin"], cfg["lookahead"], cfg["turn_rate"], cfg["accel"] or 0.0) < 0:
         raise ValueError(f"margins, lookahead, turn rate and acceleration must be >= 0, got {text!r}")
+    if cfg["dcap"] is not None and not cfg["dcap"] > 0:
+        raise ValueError(f"the diffusion speed cap DCAP must be > 0, got {text!r}")
     if cfg["trim"] is not None and not abs(cfg["trim"]) <= 0.5:
         raise ValueError(f"the steering trim must be within ±0.5 rad, got {text!r}")
     return cfg
@@ -123,6 +128,8 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
         ah.SKIP_PASSED_WAYPOINTS = cfg["skip"]
     if cfg.get("keep") is not None:
         ah.KEEP_APART = cfg["keep"]
+    if cfg.get("dcap") is not None:
+        ah.DIFFUSION_SPEED_CAP = cfg["dcap"]
     from navzoo.benchmark.pedestrians import follow_scene
 
     row = follow_scene(scene, n, seconds, seed, env_overrides=env_overrides(cfg["env_flags"]),
@@ -131,12 +138,12 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
     row.pop("poses")
     return {"config": cfg["name"],
             **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles", "env_flags",
-                                   "trim", "policy", "accel", "graded", "skip", "keep")},
+                                   "trim", "policy", "accel", "graded", "skip", "keep", "dcap")},
             "crowd": crowd, "bodies": bodies, "diffusion_settings": diffusion_settings, "seed": seed, **row}
 
 
 _PARAMS = ("plan_margin", "wall_margin", "lookahead", "turn_rate", "env_flags", "trim", "policy", "accel", "graded",
-           "skip", "keep")
+           "skip", "keep", "dcap")
 
 
 def _group(row: dict) -> tuple:

@@ -139,3 +139,16 @@ def test_kinematic_body_runs_are_their_own_sample(tmp_path):
     f.write_text("".join(json.dumps(r) + "\n" for r in rows))
     lines = ablation.summary(str(f)).splitlines()[2:]
     assert [line.endswith("| n/a |") for line in lines] == [True, False]
+
+
+def test_the_keep_and_diffusion_speed_cap_fields():
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:0::::1::1")["keep"] is True
+    cfg = ablation.parse_config("c:0.1:0.1:4:2.0:0:::::::1.1")
+    assert cfg["dcap"] == 1.1 and cfg["keep"] is None
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:0::::1::1")["dcap"] is None  # the module's default
+    with pytest.raises(ValueError, match="DCAP"):
+        ablation.parse_config("c:0.1:0.1:4:2.0:0:::::::0")
+    old, new = ablation.parse_config("c:0.1:0.1:4:2.0:0:::::::1.3"), ablation.parse_config("c:0.1:0.1:4:2.0:0:::::::1.0")
+    row = {"config": "c", **{k: old[k] for k in ablation._PARAMS}, "seed": 0, "scene": "lobby"}
+    with pytest.raises(ValueError, match="dcap"):
+        ablation.done_runs([row], [new])
