@@ -162,3 +162,24 @@ def test_agent_buffer_sets_the_people_guidance_clearance(model_dir, monkeypatch)
     env.close()
     with pytest.raises(ValueError, match="agent_buffer"):
         DiffusionCrowd(TrajectoryDiffusion(CFG), agent_buffer=-0.1)
+
+
+def test_amp_targets_toward_diffusion_plans_keep_to_the_speed_cap(model_dir, monkeypatch):
+    """The rollouts toward the plans go at most DIFFUSION_SPEED_CAP x the preferred speed (default 1.0:
+    faster targets run away from the bodies, docs/crowd.md "A speed cap of 1.0 for diffusion targets")."""
+    from navzoo.envs import amp_humans
+
+    assert amp_humans.DIFFUSION_SPEED_CAP == 1.0
+    env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=1, crowd_model="diffusion",
+                 diffusion_model=str(model_dir), human_model="amp", dt=1 / 30, time_limit=10.0)
+    env.reset(seed=0)
+    peak = {}
+    for cap in (0.4, 3.0):
+        monkeypatch.setattr(amp_humans, "DIFFUSION_SPEED_CAP", cap)
+        env.amp.plan_all()
+        pace = np.linalg.norm(np.diff(env.amp.paths, axis=1), axis=2) * 30  # control steps of 1/30 s
+        peak[cap] = float(pace.max())
+    env.close()
+    v_pref = float(env.v_pref[0])
+    assert peak[0.4] <= 0.4 * v_pref * 1.05
+    assert peak[3.0] > 0.4 * v_pref * 1.5  # the plans are faster: the cap is what held them
