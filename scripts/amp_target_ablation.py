@@ -22,7 +22,10 @@ An eleventh field SKIP does the same for ``SKIP_PASSED_WAYPOINTS`` (moving past 
 while it sees the next one; default off), and a twelfth field KEEP for ``KEEP_APART`` (the people margin of the
 rollouts held by a short-range push instead of a wider radius). A thirteenth field DCAP sets
 ``DIFFUSION_SPEED_CAP`` (the rollouts toward diffusion plans go at most DCAP x the preferred speed; left out
-or empty = the module's default).
+or empty = the module's default), and a fourteenth field SCAP sets ``TARGET_SPEED_CAP`` (the social-force or
+ORCA rollouts go at most SCAP x the preferred speed; 0 = off; left out or empty = the module's default), and a
+fifteenth field LAG turns ``LAG_LIMIT_RULES`` on (1) or off (0) (social-force and ORCA targets run at most
+``LAG_LIMIT_S`` ahead of the body, as diffusion targets do; default off).
 ``--crowd`` picks the crowd model that makes the targets (default ``sfm``), and
 ``--diffusion-set K=V,...`` changes the diffusion crowd's settings in every run (names as in
 ``navzoo eval crowd-matched --diffusion-set``).
@@ -46,9 +49,9 @@ from pathlib import Path
 
 def parse_config(text: str) -> dict:
     parts = text.split(":")
-    if len(parts) not in (4, 5, 6, 7, 8, 9, 10, 11, 12, 13):
+    if len(parts) not in range(4, 16):
         raise ValueError("a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN[:TRIM[:POLICY[:ACCEL"
-                         "[:GRADED[:SKIP[:KEEP[:DCAP]]]]]]]]]], "
+                         "[:GRADED[:SKIP[:KEEP[:DCAP[:SCAP[:LAG]]]]]]]]]]]], "
                          f"got {text!r}")
     name, plan, wall, ahead = parts[:4]
     cfg = {"name": name, "plan_margin": float(plan), "wall_margin": float(wall), "lookahead": int(ahead),
@@ -59,8 +62,10 @@ def parse_config(text: str) -> dict:
            "graded": {"1": True, "0": False}.get(parts[9]) if len(parts) >= 10 and parts[9] else None,
            "skip": {"1": True, "0": False}.get(parts[10]) if len(parts) >= 11 and parts[10] else None,
            "keep": {"1": True, "0": False}.get(parts[11]) if len(parts) >= 12 and parts[11] else None,
-           "dcap": float(parts[12]) if len(parts) == 13 and parts[12] else None}
-    for field, i in (("GRADED", 9), ("SKIP", 10), ("KEEP", 11)):
+           "dcap": float(parts[12]) if len(parts) >= 13 and parts[12] else None,
+           "scap": float(parts[13]) if len(parts) >= 14 and parts[13] else None,
+           "lag": {"1": True, "0": False}.get(parts[14]) if len(parts) == 15 and parts[14] else None}
+    for field, i in (("GRADED", 9), ("SKIP", 10), ("KEEP", 11), ("LAG", 14)):
         if len(parts) > i and parts[i] and cfg[field.lower()] is None:
             raise ValueError(f"{field} must be 1 or 0, got {parts[i]!r} in {text!r}")
     if cfg["policy"] is not None and not (Path(cfg["policy"]) / "config.json").is_file():
@@ -83,6 +88,8 @@ def parse_config(text: str) -> dict:
         raise ValueError(f"margins, lookahead, turn rate and acceleration must be >= 0, got {text!r}")
     if cfg["dcap"] is not None and not cfg["dcap"] > 0:
         raise ValueError(f"the diffusion speed cap DCAP must be > 0, got {text!r}")
+    if cfg["scap"] is not None and not cfg["scap"] >= 0:
+        raise ValueError(f"the target speed cap SCAP must be >= 0 (0 = off), got {text!r}")
     if cfg["trim"] is not None and not abs(cfg["trim"]) <= 0.5:
         raise ValueError(f"the steering trim must be within ±0.5 rad, got {text!r}")
     return cfg
@@ -130,6 +137,10 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
         ah.KEEP_APART = cfg["keep"]
     if cfg.get("dcap") is not None:
         ah.DIFFUSION_SPEED_CAP = cfg["dcap"]
+    if cfg.get("scap") is not None:
+        ah.TARGET_SPEED_CAP = cfg["scap"]
+    if cfg.get("lag") is not None:
+        ah.LAG_LIMIT_RULES = cfg["lag"]
     from navzoo.benchmark.pedestrians import follow_scene
 
     row = follow_scene(scene, n, seconds, seed, env_overrides=env_overrides(cfg["env_flags"]),
@@ -138,12 +149,12 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
     row.pop("poses")
     return {"config": cfg["name"],
             **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles", "env_flags",
-                                   "trim", "policy", "accel", "graded", "skip", "keep", "dcap")},
+                                   "trim", "policy", "accel", "graded", "skip", "keep", "dcap", "scap", "lag")},
             "crowd": crowd, "bodies": bodies, "diffusion_settings": diffusion_settings, "seed": seed, **row}
 
 
 _PARAMS = ("plan_margin", "wall_margin", "lookahead", "turn_rate", "env_flags", "trim", "policy", "accel", "graded",
-           "skip", "keep", "dcap")
+           "skip", "keep", "dcap", "scap", "lag")
 
 
 def _group(row: dict) -> tuple:

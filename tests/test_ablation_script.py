@@ -152,3 +152,22 @@ def test_the_keep_and_diffusion_speed_cap_fields():
     row = {"config": "c", **{k: old[k] for k in ablation._PARAMS}, "seed": 0, "scene": "lobby"}
     with pytest.raises(ValueError, match="dcap"):
         ablation.done_runs([row], [new])
+
+
+def test_the_target_speed_cap_field():
+    cfg = ablation.parse_config("c:0.1:0.1:4:2.0:0::::::::1.0")
+    assert cfg["scap"] == 1.0 and cfg["dcap"] is None
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:0:::::::1.0")["scap"] is None  # the module's default
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:0::::::::0")["scap"] == 0.0  # off
+    with pytest.raises(ValueError, match="SCAP"):
+        ablation.parse_config("c:0.1:0.1:4:2.0:0::::::::-1")
+    with pytest.raises(ValueError, match="a configuration is"):
+        ablation.parse_config("c:0.1:0.1:4:2.0:0::::::::1.0:1:5")
+
+
+def test_the_lag_field():
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:0:::::::::1")["lag"] is True
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:0:::::::::0")["lag"] is False
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:0::::::::1.0")["lag"] is None  # the module's default
+    with pytest.raises(ValueError, match="LAG"):
+        ablation.parse_config("c:0.1:0.1:4:2.0:0:::::::::yes")

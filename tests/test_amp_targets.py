@@ -260,3 +260,44 @@ def test_keep_apart_rollouts_hold_the_margin_without_pushing_walkers_aside():
     gap = {name: np.linalg.norm(p[0] - p[1], axis=1) for name, p in (("wide", wide), ("keep", keep))}
     assert gap["keep"].min() >= 2 * 0.3 + 2 * ah.PLAN_MARGIN - 0.02
     assert gap["keep"][-1] < gap["wide"][-1] - 0.05
+
+
+def test_target_speed_cap_holds_social_force_rollouts_to_the_preferred_speed(monkeypatch):
+    from navzoo.envs import amp_humans
+    from navzoo.envs.nav_env import NavEnv
+
+    assert amp_humans.TARGET_SPEED_CAP == 0.0  # off by default
+    env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=8, human_model="amp", dt=1 / 30, time_limit=10.0)
+    env.reset(seed=0)
+    peak = {}
+    for cap in (0.0, 0.5):
+        monkeypatch.setattr(amp_humans, "TARGET_SPEED_CAP", cap)
+        env.amp.plan_all()
+        pace = np.linalg.norm(np.diff(env.amp.paths, axis=1), axis=2) * 30  # control steps of 1/30 s
+        peak[cap] = pace.max(axis=1)
+    v_pref = env.v_pref.copy()
+    env.close()
+    assert (peak[0.5] <= 0.5 * v_pref * 1.01 + 1e-6).all()
+    assert (peak[0.0] > 0.5 * v_pref * 1.3).all()  # uncapped, the rollouts walk at about the preferred speed
+
+
+def test_lag_limit_for_social_force_targets_is_an_option_off_by_default(monkeypatch):
+    from navzoo.envs import amp_humans
+    from navzoo.envs.nav_env import NavEnv
+
+    def lead_after_blocking(lag_rules: bool) -> float:
+        monkeypatch.setattr(amp_humans, "LAG_LIMIT_RULES", lag_rules)
+        env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=2, human_model="amp", dt=1 / 30, time_limit=10.0)
+        env.reset(seed=0)
+        amp = env.amp
+        assert (amp.lag_steps is not None) == lag_rules
+        # bodies that stand still (zero actions keep them upright for a second) while their targets run on
+        for _ in range(30):
+            env.step({a: np.zeros(env.action_space(a).shape, dtype=np.float32) for a in env.agents})
+        pos = amp.planar()[0]
+        lead = float(np.linalg.norm(amp.target_now() - pos, axis=1).max())
+        env.close()
+        return lead
+
+    free, held = lead_after_blocking(False), lead_after_blocking(True)
+    assert held < 0.7 * free  # measured: 1.52 m ahead of a standing body by time alone, 0.84 m with the limit

@@ -75,6 +75,9 @@ PASSAGE_REACH = 1.0  # m
 # With diffusion plans the target's current point therefore runs at most LAG_LIMIT_S ahead of the point
 # of the plan nearest to the body (progress_index).
 LAG_LIMIT_S = 0.3
+# Social-force and ORCA rollouts start from the body at every replan (2 s), so their targets ran by time alone.
+# LAG_LIMIT_RULES = True holds them to the same LAG_LIMIT_S lead over the body.
+LAG_LIMIT_RULES = False
 # Diffusion crowd with physics bodies: the target rollout heads for each plan's point this far ahead (as
 # kinematic diffusion pedestrians do), at the plan's pace but at most DIFFUSION_SPEED_CAP times the
 # person's preferred speed (docs/crowd.md "Diffusion plans for physics bodies").
@@ -131,6 +134,10 @@ TARGET_TURN_RATE = 2.0
 # success within the seed spread (0.423 -> 0.431 over 3 seeds; diffusion 0.527 -> 0.543), docs/pedestrians.md.
 TARGET_ACCEL = 0.0
 DIFFUSION_TARGET_ACCEL = 0.0
+# The social-force (and ORCA) rollouts of physics pedestrians may go as fast as human_max_speed (2 m/s)
+# when forces push them. With TARGET_SPEED_CAP > 0 they go at most that times the person's preferred speed,
+# as DIFFUSION_SPEED_CAP holds the rollouts toward diffusion plans; 0 = off (human_max_speed only).
+TARGET_SPEED_CAP = 0.0
 # A physics pedestrian that yields in a bottleneck can hold its wait until the person it yielded to has
 # passed it, for at most this many more seconds (navzoo.agents.yielding, YieldParams.hold_max; 0 = off).
 # Off: 6 s measured worse on the following protocol (success 0.406 -> 0.353 at seed 0, 0.395 -> 0.338 at
@@ -288,7 +295,8 @@ class AmpHumans:
         self.t = 0  # control steps since reset
         self.plan_t = np.zeros(self.n, dtype=int)  # control step of each person's last plan
         self.k_prog = np.zeros(self.n, dtype=int)  # index of each person's current target point
-        self.lag_steps = int(round(LAG_LIMIT_S * CONTROL_HZ)) if env.diffusion is not None else None
+        lag = env.diffusion is not None or LAG_LIMIT_RULES
+        self.lag_steps = int(round(LAG_LIMIT_S * CONTROL_HZ)) if lag else None
         self.fallen = np.zeros(self.n, dtype=bool)
         self.sfm = SocialForceParams()
         self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN)
@@ -344,6 +352,8 @@ class AmpHumans:
         wall_rad = env.radius[h] + WALL_PLAN_MARGIN
         visible = [env.waypoint_visibility(i) for i in h]
         vmax = np.full(self.n, env.config.human_max_speed)
+        if TARGET_SPEED_CAP > 0.0 and env.diffusion is None:
+            vmax = np.where(v_pref > 0.0, np.minimum(vmax, v_pref * TARGET_SPEED_CAP), vmax)
         robots = np.flatnonzero(env.alive[:R]) if env.config.humans_see_robots else np.zeros(0, dtype=int)
         r_pos, r_vel, r_rad = env.pos[robots], env.vel[robots], env.radius[robots]
         tol = env.config.waypoint_tolerance
