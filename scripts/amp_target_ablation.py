@@ -25,7 +25,9 @@ rollouts held by a short-range push instead of a wider radius). A thirteenth fie
 or empty = the module's default), and a fourteenth field SCAP sets ``TARGET_SPEED_CAP`` (the social-force or
 ORCA rollouts go at most SCAP x the preferred speed; 0 = off; left out or empty = the module's default), and a
 fifteenth field LAG turns ``LAG_LIMIT_RULES`` on (1) or off (0) (social-force and ORCA targets run at most
-``LAG_LIMIT_S`` ahead of the body, as diffusion targets do; default off).
+``LAG_LIMIT_S`` ahead of the body, as diffusion targets do; default off). A sixteenth field SET sets other
+upper-case constants of ``navzoo.envs.amp_humans``, ``NAME=VALUE`` joined by ``+`` (e.g.
+``START_LAG=1+START_REPLAN_S=0.7``; the value takes the constant's type, booleans as 1 or 0).
 ``--crowd`` picks the crowd model that makes the targets (default ``sfm``), and
 ``--diffusion-set K=V,...`` changes the diffusion crowd's settings in every run (names as in
 ``navzoo eval crowd-matched --diffusion-set``).
@@ -49,9 +51,9 @@ from pathlib import Path
 
 def parse_config(text: str) -> dict:
     parts = text.split(":")
-    if len(parts) not in range(4, 16):
+    if len(parts) not in range(4, 17):
         raise ValueError("a configuration is NAME:PLAN_MARGIN:WALL_MARGIN:LOOKAHEAD[:TURN_RATE[:FALLEN[:TRIM[:POLICY[:ACCEL"
-                         "[:GRADED[:SKIP[:KEEP[:DCAP[:SCAP[:LAG]]]]]]]]]]]], "
+                         "[:GRADED[:SKIP[:KEEP[:DCAP[:SCAP[:LAG[:SET]]]]]]]]]]]]], "
                          f"got {text!r}")
     name, plan, wall, ahead = parts[:4]
     cfg = {"name": name, "plan_margin": float(plan), "wall_margin": float(wall), "lookahead": int(ahead),
@@ -64,7 +66,8 @@ def parse_config(text: str) -> dict:
            "keep": {"1": True, "0": False}.get(parts[11]) if len(parts) >= 12 and parts[11] else None,
            "dcap": float(parts[12]) if len(parts) >= 13 and parts[12] else None,
            "scap": float(parts[13]) if len(parts) >= 14 and parts[13] else None,
-           "lag": {"1": True, "0": False}.get(parts[14]) if len(parts) == 15 and parts[14] else None}
+           "lag": {"1": True, "0": False}.get(parts[14]) if len(parts) >= 15 and parts[14] else None,
+           "set": parse_constants(parts[15], text) if len(parts) == 16 and parts[15] else None}
     for field, i in (("GRADED", 9), ("SKIP", 10), ("KEEP", 11), ("LAG", 14)):
         if len(parts) > i and parts[i] and cfg[field.lower()] is None:
             raise ValueError(f"{field} must be 1 or 0, got {parts[i]!r} in {text!r}")
@@ -93,6 +96,29 @@ def parse_config(text: str) -> dict:
     if cfg["trim"] is not None and not abs(cfg["trim"]) <= 0.5:
         raise ValueError(f"the steering trim must be within ±0.5 rad, got {text!r}")
     return cfg
+
+
+def parse_constants(field: str, text: str) -> dict:
+    """The SET field: ``NAME=VALUE`` pairs joined by ``+``, each an upper-case constant of
+    ``navzoo.envs.amp_humans``; values take the constant's type (booleans as 1 or 0)."""
+    import navzoo.envs.amp_humans as ah
+
+    out: dict = {}
+    for pair in field.split("+"):
+        name, eq, value = pair.partition("=")
+        current = getattr(ah, name, None) if name.isupper() else None
+        if not eq or not isinstance(current, (bool, int, float)):
+            raise ValueError(f"SET takes NAME=VALUE of a numeric or boolean upper-case constant of "
+                             f"navzoo.envs.amp_humans, got {pair!r} in {text!r}")
+        try:
+            if isinstance(current, bool):
+                out[name] = {"1": True, "0": False}[value]
+            else:
+                out[name] = type(current)(value)
+        except (KeyError, ValueError):
+            raise ValueError(f"{name} takes {'1 or 0' if isinstance(current, bool) else type(current).__name__}, "
+                             f"got {value!r} in {text!r}") from None
+    return out
 
 
 def env_overrides(flags: list[str]) -> dict:
@@ -141,6 +167,8 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
         ah.TARGET_SPEED_CAP = cfg["scap"]
     if cfg.get("lag") is not None:
         ah.LAG_LIMIT_RULES = cfg["lag"]
+    for name, value in (cfg.get("set") or {}).items():
+        setattr(ah, name, value)
     from navzoo.benchmark.pedestrians import follow_scene
 
     row = follow_scene(scene, n, seconds, seed, env_overrides=env_overrides(cfg["env_flags"]),
@@ -149,12 +177,12 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
     row.pop("poses")
     return {"config": cfg["name"],
             **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles", "env_flags",
-                                   "trim", "policy", "accel", "graded", "skip", "keep", "dcap", "scap", "lag")},
+                                   "trim", "policy", "accel", "graded", "skip", "keep", "dcap", "scap", "lag", "set")},
             "crowd": crowd, "bodies": bodies, "diffusion_settings": diffusion_settings, "seed": seed, **row}
 
 
 _PARAMS = ("plan_margin", "wall_margin", "lookahead", "turn_rate", "env_flags", "trim", "policy", "accel", "graded",
-           "skip", "keep", "dcap", "scap", "lag")
+           "skip", "keep", "dcap", "scap", "lag", "set")
 
 
 def _group(row: dict) -> tuple:

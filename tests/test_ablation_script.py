@@ -162,7 +162,7 @@ def test_the_target_speed_cap_field():
     with pytest.raises(ValueError, match="SCAP"):
         ablation.parse_config("c:0.1:0.1:4:2.0:0::::::::-1")
     with pytest.raises(ValueError, match="a configuration is"):
-        ablation.parse_config("c:0.1:0.1:4:2.0:0::::::::1.0:1:5")
+        ablation.parse_config("c:0.1:0.1:4:2.0:0::::::::1.0:1:START_LAG=1:5")
 
 
 def test_the_lag_field():
@@ -171,3 +171,12 @@ def test_the_lag_field():
     assert ablation.parse_config("c:0.1:0.1:4:2.0:0::::::::1.0")["lag"] is None  # the module's default
     with pytest.raises(ValueError, match="LAG"):
         ablation.parse_config("c:0.1:0.1:4:2.0:0:::::::::yes")
+
+
+def test_the_set_field_takes_amp_humans_constants_by_type():
+    cfg = ablation.parse_config("c:0.1:0.1:4:2.0:0::::::::::START_LAG=1+START_REPLAN_S=0.7")
+    assert cfg["set"] == {"START_LAG": True, "START_REPLAN_S": 0.7}
+    for bad, match in (("NO_SUCH=1", "SET takes"), ("START_LAG=yes", "1 or 0"), ("START_REPLAN_S=soon", "float"),
+                       ("START_LAG", "SET takes"), ("heading=1", "SET takes")):
+        with pytest.raises(ValueError, match=match):
+            ablation.parse_config("c:0.1:0.1:4:2.0:0::::::::::" + bad)

@@ -281,23 +281,71 @@ def test_target_speed_cap_holds_social_force_rollouts_to_the_preferred_speed(mon
     assert (peak[0.0] > 0.5 * v_pref * 1.3).all()  # uncapped, the rollouts walk at about the preferred speed
 
 
-def test_lag_limit_for_social_force_targets_is_an_option_off_by_default(monkeypatch):
+def _lead_of_targets_over_standing_bodies(monkeypatch, **constants) -> float:
+    """How far (m) social-force targets run ahead of two bodies that stand still for a second after a reset."""
     from navzoo.envs import amp_humans
     from navzoo.envs.nav_env import NavEnv
 
-    def lead_after_blocking(lag_rules: bool) -> float:
-        monkeypatch.setattr(amp_humans, "LAG_LIMIT_RULES", lag_rules)
-        env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=2, human_model="amp", dt=1 / 30, time_limit=10.0)
-        env.reset(seed=0)
-        amp = env.amp
-        assert (amp.lag_steps is not None) == lag_rules
-        # bodies that stand still (zero actions keep them upright for a second) while their targets run on
-        for _ in range(30):
-            env.step({a: np.zeros(env.action_space(a).shape, dtype=np.float32) for a in env.agents})
-        pos = amp.planar()[0]
-        lead = float(np.linalg.norm(amp.target_now() - pos, axis=1).max())
-        env.close()
-        return lead
+    for name, value in constants.items():
+        monkeypatch.setattr(amp_humans, name, value)
+    env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=2, human_model="amp", dt=1 / 30, time_limit=10.0)
+    env.reset(seed=0)
+    amp = env.amp
+    for _ in range(30):  # zero actions: the bodies stand (or sag) while their targets run on
+        env.step({a: np.zeros(env.action_space(a).shape, dtype=np.float32) for a in env.agents})
+    lead = float(np.linalg.norm(amp.target_now() - amp.planar()[0], axis=1).max())
+    env.close()
+    return lead
 
-    free, held = lead_after_blocking(False), lead_after_blocking(True)
+
+def test_lag_limit_for_social_force_targets_is_an_option_off_by_default(monkeypatch):
+    from navzoo.envs import amp_humans
+
+    assert amp_humans.LAG_LIMIT_RULES is False
+    free = _lead_of_targets_over_standing_bodies(monkeypatch, LAG_LIMIT_RULES=False)
+    held = _lead_of_targets_over_standing_bodies(monkeypatch, LAG_LIMIT_RULES=True)
     assert held < 0.7 * free  # measured: 1.52 m ahead of a standing body by time alone, 0.84 m with the limit
+
+
+def test_start_lag_holds_only_the_first_plan_of_a_trip(monkeypatch):
+    from navzoo.envs import amp_humans
+    from navzoo.envs.nav_env import NavEnv
+
+    assert amp_humans.START_LAG is False
+    free = _lead_of_targets_over_standing_bodies(monkeypatch, START_LAG=False)
+    held = _lead_of_targets_over_standing_bodies(monkeypatch, START_LAG=True)  # a reset starts every trip
+    assert held < 0.7 * free
+    env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=2, human_model="amp", dt=1 / 30, time_limit=10.0)
+    env.reset(seed=0)
+    amp = env.amp
+    assert amp.starting.all()
+    amp.plan_all()  # a regular replan: nobody got a new goal since the last plan
+    assert not amp.starting.any()
+    env.goals_reached[env.n_robots] += 1  # the first person got a new goal
+    amp.plan_all()
+    assert amp.starting.tolist() == [True, False]
+    env.close()
+
+
+def test_start_replan_plans_once_more_after_a_replan_that_new_goals_asked_for(monkeypatch):
+    from navzoo.envs import amp_humans
+    from navzoo.envs.nav_env import NavEnv
+
+    assert amp_humans.START_REPLAN_S == 0.0
+    env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=2, human_model="amp", dt=1 / 30, time_limit=10.0)
+    env.reset(seed=0)
+    amp = env.amp
+    amp.after_step(replan=True)
+    assert amp.extra_replan == -1  # off
+    monkeypatch.setattr(amp_humans, "START_REPLAN_S", 0.5)
+    amp.t += 1
+    amp.after_step(replan=True)
+    t0 = amp.t
+    assert amp.extra_replan == t0 + 15 and (amp.plan_t == t0).all()
+    amp.t += 14
+    amp.after_step(replan=False)
+    assert (amp.plan_t == t0).all()  # not yet
+    amp.t += 1
+    amp.after_step(replan=False)
+    assert (amp.plan_t == t0 + 15).all() and amp.extra_replan == -1  # once, then the regular period
+    env.close()

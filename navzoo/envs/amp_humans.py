@@ -78,6 +78,13 @@ LAG_LIMIT_S = 0.3
 # Social-force and ORCA rollouts start from the body at every replan (2 s), so their targets ran by time alone.
 # LAG_LIMIT_RULES = True holds them to the same LAG_LIMIT_S lead over the body.
 LAG_LIMIT_RULES = False
+# A replan that new goals asked for starts the rollouts from bodies that may still walk the other way (a
+# goal behind the person: the body turns around while its target already walks off). START_REPLAN_S > 0
+# replans once more that long after such a replan, from the turned body; 0 = off.
+START_REPLAN_S = 0.0
+# START_LAG = True holds a person's target to the LAG_LIMIT_S lead over its body during the first plan of each
+# trip (from the new goal to the next regular replan), as diffusion targets are held all the time; off.
+START_LAG = False
 # Diffusion crowd with physics bodies: the target rollout heads for each plan's point this far ahead (as
 # kinematic diffusion pedestrians do), at the plan's pace but at most DIFFUSION_SPEED_CAP times the
 # person's preferred speed (docs/crowd.md "Diffusion plans for physics bodies").
@@ -294,6 +301,9 @@ class AmpHumans:
         self.paths = np.zeros((self.n, self.path_len, 2))
         self.t = 0  # control steps since reset
         self.plan_t = np.zeros(self.n, dtype=int)  # control step of each person's last plan
+        self.extra_replan = -1  # control step of the replan that START_REPLAN_S asks for (-1: none)
+        self.starting = np.zeros(self.n, dtype=bool)  # the current plan is the first of a trip (START_LAG)
+        self._goals_seen = np.zeros(self.n, dtype=int)
         self.k_prog = np.zeros(self.n, dtype=int)  # index of each person's current target point
         lag = env.diffusion is not None or LAG_LIMIT_RULES
         self.lag_steps = int(round(LAG_LIMIT_S * CONTROL_HZ)) if lag else None
@@ -312,6 +322,8 @@ class AmpHumans:
         self.bodies.set_state(self.bodies.standing_state(pos, yaw))
         self.t = 0
         self.fallen[:] = False
+        self.extra_replan = -1
+        self._goals_seen[:] = -1  # the first plan after a reset starts every person's first trip
         self.plan_all()
 
     def state(self) -> dict[str, np.ndarray]:
@@ -406,6 +418,9 @@ class AmpHumans:
         self.paths = resample(out, PLAN_DT, 1.0 / CONTROL_HZ, self.path_len)
         self.plan_t[:] = self.t
         self.k_prog[:] = 0
+        goals = env.goals_reached[h]
+        self.starting = goals != self._goals_seen
+        self._goals_seen = goals.copy()
 
     def narrow_passages(self, paths: list[np.ndarray], radius: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
         """Per person, the points of its A* path where the wall margin must shrink (:func:`narrow_points`),
@@ -440,16 +455,21 @@ class AmpHumans:
         self.bodies.step(before_substep)
         self.t += 1
         k_time = self.t - self.plan_t
-        if self.lag_steps is None:
-            self.k_prog = k_time
-        else:
+        if self.lag_steps is not None:
             self.k_prog = progress_index(self.k_prog, k_time, self.paths, self.planar()[0], self.lag_steps)
+        elif START_LAG and self.starting.any():
+            held = progress_index(self.k_prog, k_time, self.paths, self.planar()[0], int(round(LAG_LIMIT_S * CONTROL_HZ)))
+            self.k_prog = np.where(self.starting, held, k_time)
+        else:
+            self.k_prog = k_time
 
     def after_step(self, replan: bool) -> None:
         """Falls are sticky; replan when due (or when asked, e.g. after new goals)."""
         self.fallen |= self.bodies.fallen()
-        if replan or self.t - int(self.plan_t.min()) >= self.replan_steps:
+        extra = 0 <= self.extra_replan <= self.t
+        if replan or extra or self.t - int(self.plan_t.min()) >= self.replan_steps:
             self.plan_all()
+            self.extra_replan = self.t + int(round(START_REPLAN_S * CONTROL_HZ)) if replan and START_REPLAN_S > 0 else -1
 
     def task_reward(self) -> dict[str, np.ndarray]:
         """The controller's task reward terms (the paper's r_tau, r_e, r_d with its alpha values)."""
