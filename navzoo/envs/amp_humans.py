@@ -76,20 +76,23 @@ PASSAGE_REACH = 1.0  # m
 # of the plan nearest to the body (progress_index).
 LAG_LIMIT_S = 0.3
 # Social-force and ORCA rollouts start from the body at every replan (2 s), so their targets ran by time alone.
-# LAG_LIMIT_RULES = True holds them to the same LAG_LIMIT_S lead over the body.
+# LAG_LIMIT_RULES = True holds them to the same LAG_LIMIT_S lead over the body. Off: over 4 seeds of the
+# following protocol (device machine, docs/pedestrians.md "Pacing social-force targets") per-limit success
+# 0.573 -> 0.579; per goal 0.629 -> 0.684, mostly late bodies no longer counted off the path.
 LAG_LIMIT_RULES = False
 # A replan that new goals asked for starts the rollouts from bodies that may still walk the other way (a
 # goal behind the person: the body turns around while its target already walks off). START_REPLAN_S > 0
-# replans once more that long after such a replan, from the turned body; 0 = off.
+# replans once more that long after such a replan, from the turned body; 0 = off. START_LAG = True holds a
+# person's target to the LAG_LIMIT_S lead over its body during the first plan of each trip (from the new goal
+# to the next regular replan). Both off: over 4 seeds (docs/pedestrians.md "Pacing social-force targets"),
+# per-limit success 0.573 -> 0.533 (START_REPLAN_S 0.7) and 0.561 (START_LAG).
 START_REPLAN_S = 0.0
-# START_LAG = True holds a person's target to the LAG_LIMIT_S lead over its body during the first plan of each
-# trip (from the new goal to the next regular replan), as diffusion targets are held all the time; off.
 START_LAG = False
 # Diffusion crowd with physics bodies: the target rollout heads for each plan's point this far ahead (as
 # kinematic diffusion pedestrians do), at the plan's pace but at most DIFFUSION_SPEED_CAP times the
 # person's preferred speed (docs/crowd.md "Diffusion plans for physics bodies").
 DIFFUSION_LOOKAHEAD_S = 0.8
-# The cap was 1.3 (the kinematic pedestrians' pace limit) until 2026-11-28. Targets faster than the person's
+# The cap was 1.3 until 2026-11-28. Targets faster than the person's
 # own pace run away from a body that cannot keep up: over 4 seeds of the following protocol (device machine,
 # docs/crowd.md "A speed cap of 1.0 for diffusion targets", docs/results/diffusion_speed_cap/) caps of
 # 1.3 / 1.15 / 1.0 / 0.9 gave success per goal 0.779 / 0.810 / 0.823 / 0.824, falls 0.023 / 0.012 / 0.006 /
@@ -143,7 +146,8 @@ TARGET_ACCEL = 0.0
 DIFFUSION_TARGET_ACCEL = 0.0
 # The social-force (and ORCA) rollouts of physics pedestrians may go as fast as human_max_speed (2 m/s)
 # when forces push them. With TARGET_SPEED_CAP > 0 they go at most that times the person's preferred speed,
-# as DIFFUSION_SPEED_CAP holds the rollouts toward diffusion plans; 0 = off (human_max_speed only).
+# as DIFFUSION_SPEED_CAP holds the rollouts toward diffusion plans; 0 = off (human_max_speed only). Off: 1.0
+# left per-limit success level over 4 seeds (0.573 -> 0.575; docs/pedestrians.md "Pacing social-force targets").
 TARGET_SPEED_CAP = 0.0
 # A physics pedestrian that yields in a bottleneck can hold its wait until the person it yielded to has
 # passed it, for at most this many more seconds (navzoo.agents.yielding, YieldParams.hold_max; 0 = off).
