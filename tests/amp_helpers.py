@@ -1,4 +1,4 @@
-"""Helpers shared by the AMP discriminator-input tests."""
+"""Helpers shared by the AMP tests."""
 
 from __future__ import annotations
 
@@ -19,3 +19,17 @@ class FixedTimes:
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.lib, name)
+
+
+def peak_target_pace(env: Any, monkeypatch: Any, constant: str, values: tuple[float, ...]) -> dict[float, np.ndarray]:
+    """Per person, the fastest pace (m/s) of the physics pedestrians' target paths replanned now with the
+    ``navzoo.envs.amp_humans`` constant ``constant`` set to each of ``values``."""
+    from navzoo.envs import amp_humans
+
+    peak = {}
+    for value in values:
+        monkeypatch.setattr(amp_humans, constant, value)
+        env.amp.plan_all()
+        pace = np.linalg.norm(np.diff(env.amp.paths, axis=1), axis=2) * amp_humans.CONTROL_HZ
+        peak[value] = pace.max(axis=1)
+    return peak

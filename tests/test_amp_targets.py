@@ -7,6 +7,7 @@ import pytest
 
 from navzoo.agents.sfm import SocialForceParams, social_force_velocities, social_forces
 from navzoo.envs.amp_humans import WAYPOINT_LOOKAHEAD, advance_waypoint
+from tests.amp_helpers import peak_target_pace
 
 PATH = np.stack([np.arange(10) * 0.5, np.zeros(10)], axis=1)  # waypoints 0.5 m apart along x
 
@@ -269,12 +270,7 @@ def test_target_speed_cap_holds_social_force_rollouts_to_the_preferred_speed(mon
     assert amp_humans.TARGET_SPEED_CAP == 0.0  # off by default
     env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=8, human_model="amp", dt=1 / 30, time_limit=10.0)
     env.reset(seed=0)
-    peak = {}
-    for cap in (0.0, 0.5):
-        monkeypatch.setattr(amp_humans, "TARGET_SPEED_CAP", cap)
-        env.amp.plan_all()
-        pace = np.linalg.norm(np.diff(env.amp.paths, axis=1), axis=2) * 30  # control steps of 1/30 s
-        peak[cap] = pace.max(axis=1)
+    peak = peak_target_pace(env, monkeypatch, "TARGET_SPEED_CAP", (0.0, 0.5))
     v_pref = env.v_pref.copy()
     env.close()
     assert (peak[0.5] <= 0.5 * v_pref * 1.01 + 1e-6).all()

@@ -13,6 +13,7 @@ from navzoo.agents.diffusion.model import DiffusionConfig, TrajectoryDiffusion
 from navzoo.agents.diffusion.trainer import TrainConfig, export, train
 from navzoo.envs.nav_env import NavEnv
 from navzoo.envs.wrappers import FrozenAgents
+from tests.amp_helpers import peak_target_pace
 
 CFG = DiffusionConfig(base=8, mults=(1, 2), cond_dim=32, map_cells=32, steps=20, sample_steps=4)
 
@@ -173,13 +174,8 @@ def test_amp_targets_toward_diffusion_plans_keep_to_the_speed_cap(model_dir, mon
     env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=1, crowd_model="diffusion",
                  diffusion_model=str(model_dir), human_model="amp", dt=1 / 30, time_limit=10.0)
     env.reset(seed=0)
-    peak = {}
-    for cap in (0.4, 3.0):
-        monkeypatch.setattr(amp_humans, "DIFFUSION_SPEED_CAP", cap)
-        env.amp.plan_all()
-        pace = np.linalg.norm(np.diff(env.amp.paths, axis=1), axis=2) * 30  # control steps of 1/30 s
-        peak[cap] = float(pace.max())
+    peak = peak_target_pace(env, monkeypatch, "DIFFUSION_SPEED_CAP", (0.4, 3.0))
     env.close()
     v_pref = float(env.v_pref[0])
-    assert peak[0.4] <= 0.4 * v_pref * 1.05
-    assert peak[3.0] > 0.4 * v_pref * 1.5  # the plans are faster: the cap is what held them
+    assert peak[0.4][0] <= 0.4 * v_pref * 1.05
+    assert peak[3.0][0] > 0.4 * v_pref * 1.5  # the plans are faster: the cap is what held them
