@@ -309,8 +309,7 @@ class AmpHumans:
         self.starting = np.zeros(self.n, dtype=bool)  # the current plan is the first of a trip (START_LAG)
         self._goals_seen = np.zeros(self.n, dtype=int)
         self.k_prog = np.zeros(self.n, dtype=int)  # index of each person's current target point
-        lag = env.diffusion is not None or LAG_LIMIT_RULES
-        self.lag_steps = int(round(LAG_LIMIT_S * CONTROL_HZ)) if lag else None
+        self.lag_all = env.diffusion is not None or LAG_LIMIT_RULES  # every target held to LAG_LIMIT_S (progress_index)
         self.fallen = np.zeros(self.n, dtype=bool)
         self.sfm = SocialForceParams()
         self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN)
@@ -459,13 +458,11 @@ class AmpHumans:
         self.bodies.step(before_substep)
         self.t += 1
         k_time = self.t - self.plan_t
-        if self.lag_steps is not None:
-            self.k_prog = progress_index(self.k_prog, k_time, self.paths, self.planar()[0], self.lag_steps)
-        elif START_LAG and self.starting.any():
-            held = progress_index(self.k_prog, k_time, self.paths, self.planar()[0], int(round(LAG_LIMIT_S * CONTROL_HZ)))
-            self.k_prog = np.where(self.starting, held, k_time)
-        else:
-            self.k_prog = k_time
+        held = self.lag_all | (START_LAG & self.starting)  # whose target waits for the body
+        if held.any():
+            lead = progress_index(self.k_prog, k_time, self.paths, self.planar()[0], int(round(LAG_LIMIT_S * CONTROL_HZ)))
+            k_time = np.where(held, lead, k_time)
+        self.k_prog = k_time
 
     def after_step(self, replan: bool) -> None:
         """Falls are sticky; replan when due (or when asked, e.g. after new goals)."""
