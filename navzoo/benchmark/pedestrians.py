@@ -221,10 +221,28 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
     pedestrians never fall; their contacts are geometric (:func:`kinematic_contacts`) and their path
     error is measured against :func:`target_points` (none for rule-based crowds: ``err_n`` stays 0,
     ``path_error`` is False, and a trip that reaches its goal is a success).
+
+    The run uses one torch thread, however it is called (a worker of a pool or the calling process): the
+    policy's and the diffusion model's float sums then do not depend on the thread count, so ``--workers 1``
+    and ``--workers N`` give the same trips on one machine. Runs on another kind of CPU can still diverge.
     """
-    t0 = time.time()
     if human_model not in ("amp", "kinematic"):
         raise ValueError(f"human_model must be 'amp' or 'kinematic', got {human_model!r}")
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        return _follow_scene(scene, n, seconds, seed, policy_dir, pose_every, max_poses, crowd_model, human_model,
+                             env_overrides, steering_trim)
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str | None, pose_every: int,
+                  max_poses: int, crowd_model: str, human_model: str, env_overrides: dict[str, Any] | None,
+                  steering_trim: float | None) -> dict[str, Any]:
+    t0 = time.time()
     wrapped, env = _make(scene, n, human_model, seconds, seed, policy_dir, crowd_model, env_overrides, steering_trim)
     amp = env.amp is not None
     body_ids = env.amp.ids if amp else env.humans.ids
