@@ -176,8 +176,7 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
                        human_model=bodies)
     row.pop("poses")
     return {"config": cfg["name"],
-            **{k: cfg[k] for k in ("plan_margin", "wall_margin", "lookahead", "turn_rate", "fallen_obstacles", "env_flags",
-                                   "trim", "policy", "accel", "graded", "skip", "keep", "dcap", "scap", "lag", "set")},
+            **{k: cfg[k] for k in (*_PARAMS, "fallen_obstacles")},
             "crowd": crowd, "bodies": bodies, "diffusion_settings": diffusion_settings, "seed": seed, **row}
 
 

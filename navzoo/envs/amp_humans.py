@@ -92,9 +92,9 @@ START_LAG = False
 # kinematic diffusion pedestrians do), at the plan's pace but at most DIFFUSION_SPEED_CAP times the
 # person's preferred speed (docs/crowd.md "Diffusion plans for physics bodies").
 DIFFUSION_LOOKAHEAD_S = 0.8
-# The cap was 1.3 until 2026-11-28. Targets faster than the person's
-# own pace run away from a body that cannot keep up: over 4 seeds of the following protocol (device machine,
-# docs/crowd.md "A speed cap of 1.0 for diffusion targets", docs/results/diffusion_speed_cap/) caps of
+# The cap was 1.3 until 2026-11-28. Targets faster than the person's own pace run away from a body that
+# cannot keep up: over 4 seeds of the following protocol (device machine, docs/crowd.md "A speed cap of 1.0
+# for diffusion targets", docs/results/diffusion_speed_cap/) caps of
 # 1.3 / 1.15 / 1.0 / 0.9 gave success per goal 0.779 / 0.810 / 0.823 / 0.824, falls 0.023 / 0.012 / 0.006 /
 # 0.004, agent contacts 0.170 / 0.102 / 0.060 / 0.028 and timeouts 0.094 / 0.117 / 0.146 / 0.158; on two
 # seeds not used to choose (4, 5) 1.0 against 1.3: 0.834 / 0.808 against 0.715 / 0.771.
