@@ -421,8 +421,29 @@ def test_corrupted_or_foreign_checkpoints_are_rejected_naming_the_file(tmp_path:
     other = tmp_path / "other"
     _resume_learner().train(128, ckpt_dir=other)
     small = AmpLearner(_toy(8, episode_steps=12), toy_amp_config(**_RESUME_CFG))
-    with pytest.raises(CheckpointError, match=r"meta\.json: made for env dims"):
+    with pytest.raises(CheckpointError, match=r"meta\.json: made for env dims.*--any-num-envs 1"):
         small.load_checkpoint(latest_checkpoint(other))
+
+
+def test_train_resumes_a_checkpoint_of_another_env_count_only_when_asked(tmp_path: Path) -> None:
+    """A run of 16 envs goes on with 8 (a smaller host): weights, optimisers and counters carry over."""
+    big = _resume_learner()
+    big.train(128, ckpt_dir=tmp_path)
+    saved = {k: v.clone() for k, v in big.actor.state_dict().items()}
+    small = AmpLearner(_toy(8, episode_steps=12), toy_amp_config(**_RESUME_CFG))
+    with pytest.raises(CheckpointError, match="made for env dims"):
+        small.train(256, ckpt_dir=tmp_path)
+    small = AmpLearner(_toy(8, episode_steps=12), toy_amp_config(**_RESUME_CFG))
+    small.load_checkpoint(latest_checkpoint(tmp_path), any_num_envs=True)
+    assert small.global_step == big.global_step and small.iteration == big.iteration
+    for k, v in small.actor.state_dict().items():
+        if k != "log_std":
+            assert torch.equal(v, saved[k]), k
+    assert len(small.replay) == len(big.replay)
+    small = AmpLearner(_toy(8, episode_steps=12), toy_amp_config(**_RESUME_CFG))
+    result = small.train(256, ckpt_dir=tmp_path, any_num_envs=True)
+    assert result["resumed_from"] is not None and small.global_step >= 256
+    assert small.global_step - big.global_step == 8 * small.cfg.rollout_steps * (small.iteration - big.iteration)
 
 
 def test_interrupted_save_keeps_the_last_good_checkpoint(tmp_path: Path, monkeypatch) -> None:

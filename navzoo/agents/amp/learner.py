@@ -695,6 +695,7 @@ class AmpLearner:
         reset_disc: bool = False,
         snapshot_dir: str | Path | None = None,
         snapshot_every: int = 0,
+        any_num_envs: bool = False,
     ) -> dict[str, Any]:
         """Collect and update until ``global_step >= total_steps`` (or ``time_limit_s`` of wall time).
 
@@ -703,7 +704,8 @@ class AmpLearner:
         Ctrl-C (SIGINT, main thread) finishes the current iteration, checkpoints and returns with
         ``interrupted=True``; a second Ctrl-C, or a ``KeyboardInterrupt`` raised inside the loop,
         checkpoints at once (unless this iteration is already saved) and re-raises. ``reset_disc``: the
-        resumed checkpoint's discriminator is replaced by a fresh one (see :meth:`load_checkpoint`).
+        resumed checkpoint's discriminator is replaced by a fresh one (see :meth:`load_checkpoint`);
+        ``any_num_envs``: the resumed checkpoint may come from another number of envs (its episodes restart).
         ``snapshot_every`` > 0 (with ``snapshot_dir``): also export the deterministic policy
         (:meth:`export_policy`) to ``<snapshot_dir>/policy_<iteration>`` every that many iterations and at
         the start, so that a run's policies can be compared on the following protocol afterwards
@@ -717,7 +719,7 @@ class AmpLearner:
         if ckpt_dir is not None and resume:
             latest = ckpt.latest_checkpoint(ckpt_dir)
             if latest is not None:
-                self.load_checkpoint(latest, reset_disc=reset_disc)
+                self.load_checkpoint(latest, reset_disc=reset_disc, any_num_envs=any_num_envs)
                 resumed_from = str(latest)
                 if verbose:
                     print(f"resumed from {latest} (iteration {self.iteration}, step {self.global_step})")
@@ -883,6 +885,8 @@ class AmpLearner:
         if saved_dims != mine_dims:
             raise CheckpointError(
                 f"{meta_path}: made for env dims {meta.get('dims')}, this env has {self._dims()}"
+                + ("; only the number of envs differs: resume with any_num_envs=True (train: --any-num-envs 1)"
+                   if {**saved_dims, "num_envs": 0} == {**mine_dims, "num_envs": 0} else "")
             )
         saved_cfg = meta.get("config") or {}
         mine = self.cfg.to_dict()

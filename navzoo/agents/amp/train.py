@@ -72,6 +72,10 @@ class TrainArgs:
     # 1: on resume, keep actor, critic, observation and value normalisers and their optimisers, but start a
     # fresh discriminator (weights, optimiser, input normaliser, replay buffer)
     reset_disc: int = 0
+    # 1: resume a checkpoint made with another number of envs (workers x envs per worker), e.g. a run of 60
+    # workers on a 64-core host going on with 15 on a 16-core one; everything but the envs' own state is restored
+    # and the episodes start afresh (AmpLearner.load_checkpoint's any_num_envs)
+    any_num_envs: int = 0
     # discriminator hyper-parameters (AmpConfig; a resumed checkpoint takes the values given here)
     disc_lr: float = 1e-4
     disc_grad_penalty: float = 5.0
@@ -142,6 +146,7 @@ def run(args: TrainArgs) -> dict[str, Any]:
         learner = AmpLearner(env, config, device=device)
         result = learner.train(args.total_steps, log_dir=out, ckpt_dir=out / "checkpoints", ckpt_every=args.ckpt_every,
                                verbose=True, time_limit_s=args.time_limit_s, reset_disc=bool(args.reset_disc),
+                               any_num_envs=bool(args.any_num_envs),
                                snapshot_dir=out / "snapshots", snapshot_every=args.snapshot_every)
     finally:
         env.close()
