@@ -136,6 +136,25 @@ def test_short_tracking_run(short_run):
     json.dumps(r)  # JSON-serialisable
 
 
+def test_tracking_runs_on_one_torch_thread_and_gives_the_callers_back(monkeypatch):
+    """The policy's float sums depend on the thread count (two threads against one moved 3 of 78 clips of a
+    checkpoint on the 2-core VM), so the protocol runs on one, whatever the caller has set."""
+    import torch
+
+    from navzoo.agents.amp import tracking
+
+    seen = []
+    real = tracking._track_batch
+    monkeypatch.setattr(tracking, "_track_batch", lambda *a, **k: seen.append(torch.get_num_threads()) or real(*a, **k))
+    before = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        track_clips(clips=[0], max_seconds=0.2)
+        assert seen == [1] and torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)
+
+
 def test_cli_prints_json(capsys):
     assert main([str(DEFAULT_POLICY_DIR), "--clips", "0", "--max-seconds", "0.3", "--json"]) == 0
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])

@@ -400,7 +400,8 @@ def track_clips(
             steering trim); None: the policy's own setting.
 
     Returns:
-        The summary dict (keys in the module doc), with ``per_clip`` a list of per-clip dicts.
+        The summary dict (keys in the module doc), with ``per_clip`` a list of per-clip dicts. The rollouts run
+        on one torch thread whatever the caller's setting, so the result does not depend on the thread count.
 
     Raises:
         FileNotFoundError: missing policy directory or motion folder / library files.
@@ -433,9 +434,16 @@ def track_clips(
 
     t0 = time.perf_counter()
     per_clip: list[dict[str, Any]] = []
-    for b in range(0, len(idx), int(batch_size)):
-        per_clip += _track_batch(policy, lib, idx[b : b + int(batch_size)], max_seconds, cfg, float(fail_threshold),
-                                 bool(stop_on_failure), path_end)
+    # one torch thread, however many the caller has: the policy's float sums, and so a few clips' outcomes,
+    # depend on the thread count (on the 2-core VM, 2 threads against 1 moved 3 of 78 clips of one checkpoint)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        for b in range(0, len(idx), int(batch_size)):
+            per_clip += _track_batch(policy, lib, idx[b : b + int(batch_size)], max_seconds, cfg,
+                                     float(fail_threshold), bool(stop_on_failure), path_end)
+    finally:
+        torch.set_num_threads(threads)
     wall = time.perf_counter() - t0
 
     def mean(key: str, rows: list[dict[str, Any]]) -> float | None:

@@ -1,0 +1,100 @@
+"""Clip tracking (the paper's protocol) of AMP training checkpoints, to compare runs per sample.
+
+    python scripts/amp_checkpoint_tracking.py --out docs/results/amp_scratch_tracking.jsonl \\
+        training/amp_scratch git:0ccd479:training/amp git:3ea0b4b:training/amp \\
+        training/amp_scratch/policies/policy_00001059 training/amp_scratch/policies/policy_00001478
+
+Each source is one of
+- a training folder as committed (``name``, ``meta.json``, ``state.pt.part-*``): its checkpoint is exported;
+- ``git:REV:FOLDER``: the same folder as it was at commit REV (earlier checkpoints of a run);
+- an exported policy folder (``config.json`` + ``policy.pt``).
+
+For every source one JSON line is appended to ``--out``: the checkpoint's iteration and samples, and the
+summary of ``navzoo.agents.amp.tracking.track_clips`` (all packaged locomotion clips, no steering trim unless
+the policy's config has one). A source already in ``--out`` is skipped, so an interrupted run resumes.
+Tracking runs on one torch thread (track_clips sees to it) and is deterministic on one kind of CPU; it takes
+about 15-20 s per policy on a 2-core VM.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from navzoo.agents.amp.tracking import track_clips
+from navzoo.agents.amp.train import export_from_checkpoint
+
+
+def _git_files(rev: str, folder: str) -> list[str]:
+    out = subprocess.run(["git", "ls-tree", "--name-only", f"{rev}:{folder}"], check=True, capture_output=True, text=True)
+    return out.stdout.split()
+
+
+def _git_show(rev: str, path: str) -> bytes:
+    return subprocess.run(["git", "show", f"{rev}:{path}"], check=True, capture_output=True).stdout
+
+
+def materialise(source: str, work: Path) -> Path:
+    """An exported policy folder for ``source`` (see the module doc)."""
+    if source.startswith("git:"):
+        try:
+            _, rev, folder = source.split(":", 2)
+        except ValueError:
+            raise SystemExit(f"{source}: expected git:REV:FOLDER") from None
+        files = _git_files(rev, folder)
+        parts = sorted(f for f in files if f.startswith("state.pt.part-"))
+        if not parts or "meta.json" not in files:
+            raise SystemExit(f"{source}: no state.pt.part-* and meta.json at {rev}:{folder}")
+        ckpt = work / f"ckpt_{rev}"
+        ckpt.mkdir(parents=True)
+        (ckpt / "state.pt").write_bytes(b"".join(_git_show(rev, f"{folder}/{p}") for p in parts))
+        (ckpt / "meta.json").write_bytes(_git_show(rev, f"{folder}/meta.json"))
+        return export_from_checkpoint(ckpt, work / f"policy_{rev}")
+    path = Path(source)
+    if (path / "config.json").exists() and (path / "policy.pt").exists():
+        return path
+    parts = sorted(path.glob("state.pt.part-*"))
+    if not parts or not (path / "meta.json").exists():
+        raise SystemExit(f"{source}: neither an exported policy (config.json, policy.pt) nor a training folder "
+                         "(meta.json, state.pt.part-*)")
+    ckpt = work / f"ckpt_{path.name}"
+    ckpt.mkdir(parents=True)
+    (ckpt / "state.pt").write_bytes(b"".join(p.read_bytes() for p in parts))
+    (ckpt / "meta.json").write_bytes((path / "meta.json").read_bytes())
+    return export_from_checkpoint(ckpt, work / f"policy_{path.name}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("sources", nargs="+")
+    ap.add_argument("--out", required=True, help="JSON lines, appended; sources already there are skipped")
+    args = ap.parse_args(argv)
+    out = Path(args.out)
+    done = set()
+    if out.exists():
+        done = {json.loads(line)["source"] for line in out.read_text().splitlines() if line.strip()}
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        for source in args.sources:
+            if source in done:
+                print(f"{source}: already in {out}", file=sys.stderr)
+                continue
+            policy = materialise(source, Path(tmp) / str(len(list(Path(tmp).iterdir()))))
+            config = json.loads((policy / "config.json").read_text())
+            result = track_clips(policy)
+            row = {"source": source, "trained_iterations": config.get("trained_iterations"),
+                   "trained_steps": config.get("trained_steps"), **result}
+            row["policy_dir"] = str(policy) if not str(policy).startswith(tmp) else None
+            with out.open("a") as f:
+                f.write(json.dumps(row) + "\n")
+            print(json.dumps({k: row[k] for k in ("source", "trained_steps", "clip_success_rate", "mean_pos_error_m",
+                                                  "max_pos_error_m", "mean_rot_error_rad")}))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,52 @@
+"""scripts/amp_checkpoint_tracking.py: exports checkpoints of a training folder (or git history) and tracks clips."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def script():
+    spec = importlib.util.spec_from_file_location("amp_checkpoint_tracking", ROOT / "scripts" / "amp_checkpoint_tracking.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_sources_are_exported_tracked_and_skipped_when_done(script, tmp_path, monkeypatch):
+    calls = []
+    monkeypatch.setattr(script, "track_clips", lambda policy: calls.append(Path(policy)) or {"clip_success_rate": 0.5,
+                        "mean_pos_error_m": 0.2, "max_pos_error_m": 0.3, "mean_rot_error_rad": 0.4})
+    policy = ROOT / "policies" / "amp_pedestrian"
+    out = tmp_path / "rows.jsonl"
+    assert script.main([str(policy), "--out", str(out)]) == 0
+    assert script.main([str(policy), "--out", str(out)]) == 0  # already there: skipped
+    rows = [json.loads(line) for line in out.read_text().splitlines()]
+    assert len(rows) == 1 and len(calls) == 1 and calls[0] == policy
+    assert rows[0]["source"] == str(policy) and rows[0]["trained_steps"] > 0 and rows[0]["clip_success_rate"] == 0.5
+
+
+def test_a_training_folder_is_exported_from_its_parts(script, tmp_path):
+    """The committed run folder (state.pt.part-*, meta.json) becomes an exported policy of its iteration."""
+    run = ROOT / "training" / "amp_scratch"
+    if not (run / "meta.json").exists():
+        pytest.skip("no committed scratch run")
+    policy = script.materialise(str(run), tmp_path)
+    config = json.loads((policy / "config.json").read_text())
+    meta = json.loads((run / "meta.json").read_text())
+    assert config["trained_iterations"] == meta["iteration"] and (policy / "policy.pt").exists()
+
+
+def test_bad_sources_are_named(script, tmp_path):
+    with pytest.raises(SystemExit, match="neither an exported policy"):
+        script.materialise(str(tmp_path), tmp_path / "w")
+    with pytest.raises(SystemExit, match="git:REV:FOLDER"):
+        script.materialise("git:only-one-part", tmp_path / "w")
