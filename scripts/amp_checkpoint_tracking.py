@@ -38,6 +38,15 @@ def _git_show(rev: str, path: str) -> bytes:
     return subprocess.run(["git", "show", f"{rev}:{path}"], check=True, capture_output=True).stdout
 
 
+def _export(parts: list[bytes], meta: bytes, work: Path, name: str) -> Path:
+    """Join a checkpoint's state.pt parts, write it with its meta.json and export its policy."""
+    ckpt = work / f"ckpt_{name}"
+    ckpt.mkdir(parents=True)
+    (ckpt / "state.pt").write_bytes(b"".join(parts))
+    (ckpt / "meta.json").write_bytes(meta)
+    return export_from_checkpoint(ckpt, work / f"policy_{name}")
+
+
 def materialise(source: str, work: Path) -> Path:
     """An exported policy folder for ``source`` (see the module doc)."""
     if source.startswith("git:"):
@@ -49,11 +58,8 @@ def materialise(source: str, work: Path) -> Path:
         parts = sorted(f for f in files if f.startswith("state.pt.part-"))
         if not parts or "meta.json" not in files:
             raise SystemExit(f"{source}: no state.pt.part-* and meta.json at {rev}:{folder}")
-        ckpt = work / f"ckpt_{rev}"
-        ckpt.mkdir(parents=True)
-        (ckpt / "state.pt").write_bytes(b"".join(_git_show(rev, f"{folder}/{p}") for p in parts))
-        (ckpt / "meta.json").write_bytes(_git_show(rev, f"{folder}/meta.json"))
-        return export_from_checkpoint(ckpt, work / f"policy_{rev}")
+        return _export([_git_show(rev, f"{folder}/{p}") for p in parts], _git_show(rev, f"{folder}/meta.json"),
+                       work, rev)
     path = Path(source)
     if (path / "config.json").exists() and (path / "policy.pt").exists():
         return path
@@ -61,11 +67,7 @@ def materialise(source: str, work: Path) -> Path:
     if not parts or not (path / "meta.json").exists():
         raise SystemExit(f"{source}: neither an exported policy (config.json, policy.pt) nor a training folder "
                          "(meta.json, state.pt.part-*)")
-    ckpt = work / f"ckpt_{path.name}"
-    ckpt.mkdir(parents=True)
-    (ckpt / "state.pt").write_bytes(b"".join(p.read_bytes() for p in parts))
-    (ckpt / "meta.json").write_bytes((path / "meta.json").read_bytes())
-    return export_from_checkpoint(ckpt, work / f"policy_{path.name}")
+    return _export([p.read_bytes() for p in parts], (path / "meta.json").read_bytes(), work, path.name)
 
 
 def main(argv: list[str] | None = None) -> int:
