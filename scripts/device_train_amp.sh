@@ -9,6 +9,11 @@
 # the log. Copy those files back into training/amp to continue in a later session.
 # RESET_DISC=1: resume with a fresh discriminator (needed once when the discriminator inputs changed meaning,
 # e.g. from checkpoint 3315 to the finite-difference / grounded inputs); TRAIN_ARGS: more train.py flags.
+# TRACK=1: afterwards, track the reference clips (the paper's protocol, navzoo.agents.amp.tracking) with the returned
+# checkpoint's policy, for at most TRACK_S seconds (default 120); the summary is printed and appended to train.log
+# (the call's eighth file: there is no room for a ninth). A progress signal for runs without obstacle rays, which
+# cannot run the following protocol. The device's CPU walks slightly other rollouts than the VM's: compare
+# checkpoints tracked on one kind of CPU (scripts/amp_checkpoint_tracking.py on the VM).
 #
 # Checkpoint selection (SNAPSHOT_EVERY=N, a multiple of 10): the run also exports its policy every N iterations
 # and at the start, keeps all its checkpoints, and afterwards runs the short following protocol
@@ -105,6 +110,15 @@ else
   cp /tmp/amp/checkpoints/latest.json "$OUT/"
 fi
 echo "$name" > "$OUT/name"
+if [ "${TRACK:-0}" = 1 ]; then
+  python3 -c "from navzoo.agents.amp.train import export_from_checkpoint as e; e('/tmp/amp/checkpoints/$name', '/tmp/amp/track_policy')" \
+    && timeout "${TRACK_S:-120}" python3 -m navzoo.agents.amp.tracking /tmp/amp/track_policy --json > /tmp/amp/tracking.json
+  echo "tracking rc=$? of $name: $(python3 -c "
+import json
+d = json.load(open('/tmp/amp/tracking.json'))
+print(json.dumps({k: d[k] for k in ('clip_success_rate', 'mean_pos_error_m', 'max_pos_error_m', 'mean_rot_error_rad')}))" 2>&1)" \
+    | tee -a "$OUT/train.log"
+fi
 cp /tmp/amp/checkpoints/$name/meta.json "$OUT/"
 split -b 15m /tmp/amp/checkpoints/$name/state.pt "$OUT/state.pt.part-"
 ls -la "$OUT"
