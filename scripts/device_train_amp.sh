@@ -34,9 +34,9 @@
 #   RESUME_DIR=training/amp_scratch WORKERS=60 MINIBATCH=1920 STAGE=2 TRAIN_S=545 LIMIT_S=470 \
 #     TRAIN_ARGS="--amp-velocity-span 4 --disc-lr 2e-5 --disc-grad-penalty 50 --disc-weight-decay 5e-4 --seed S" bash scripts/device_train_amp.sh
 # On the 16-core host (kind nvidia-h200 / nvidia-h100) the same run goes on with 15 workers: add --any-num-envs 1 to
-# TRAIN_ARGS for the first call after a change of WORKERS (the episodes restart; everything else resumes), and
-# move every training folder but training/amp_scratch, docs/, benchmarks/ and the policies other than
-# amp_pedestrian out of the tree for the call (the device copy holds at most 64 MiB, .whl included).
+# TRAIN_ARGS for the first call after a change of WORKERS (the episodes restart; everything else resumes). The
+# device copy holds at most 64 MiB, .whl included: `bash scripts/device_slim_tree.sh out training/amp_scratch
+# policies/amp_pedestrian` before the call, `bash scripts/device_slim_tree.sh back` after it.
 # INIT_DIR=DIR starts the scene training from a checkpoint returned by an earlier call (its name, meta.json and
 # state.pt.part-* files) instead of the shipped one; training/amp is then not needed and can stay behind.
 set -u
