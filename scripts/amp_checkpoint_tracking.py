@@ -1,5 +1,9 @@
 """Clip tracking (the paper's protocol) of AMP training checkpoints, to compare runs per sample.
 
+Or, with ``--protocol path3``, the training task's closed-loop check on stage-3 paths (curvy, with stops;
+``navzoo.agents.amp.evaluate``: falls, path error; 32 patches x 60 s, seed 0; no obstacles for a policy
+without obstacle rays, boxes and paired walkers for one with them, so compare like with like).
+
     python scripts/amp_checkpoint_tracking.py --out docs/results/amp_scratch_tracking.jsonl \\
         training/amp_scratch git:0ccd479:training/amp git:3ea0b4b:training/amp \\
         training/amp_scratch/policies/policy_00001059 training/amp_scratch/policies/policy_00001478
@@ -9,9 +13,10 @@ Each source is one of
 - ``git:REV:FOLDER``: the same folder as it was at commit REV (earlier checkpoints of a run);
 - an exported policy folder (``config.json`` + ``policy.pt``).
 
-For every source one JSON line is appended to ``--out``: the checkpoint's iteration and samples, and the
-summary of ``navzoo.agents.amp.tracking.track_clips`` (all packaged locomotion clips, no steering trim unless
-the policy's config has one). A source already in ``--out`` is skipped, so an interrupted run resumes.
+For every source one JSON line is appended to ``--out``: the checkpoint's iteration and samples, the protocol,
+and its summary (tracking: ``navzoo.agents.amp.tracking.track_clips`` over all packaged locomotion clips, no
+steering trim unless the policy's config has one). A source already in ``--out`` with the same protocol is
+skipped, so an interrupted run resumes.
 Tracking runs on one torch thread (track_clips sees to it) and is deterministic on one kind of CPU; it takes
 about 15-20 s per policy on a 2-core VM.
 """
@@ -25,6 +30,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from navzoo.agents.amp.evaluate import evaluate
 from navzoo.agents.amp.tracking import track_clips
 from navzoo.agents.amp.train import export_from_checkpoint
 
@@ -74,11 +80,13 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("sources", nargs="+")
     ap.add_argument("--out", required=True, help="JSON lines, appended; sources already there are skipped")
+    ap.add_argument("--protocol", choices=("tracking", "path3"), default="tracking")
     args = ap.parse_args(argv)
     out = Path(args.out)
     done = set()
     if out.exists():
-        done = {json.loads(line)["source"] for line in out.read_text().splitlines() if line.strip()}
+        rows = [json.loads(line) for line in out.read_text().splitlines() if line.strip()]
+        done = {row["source"] for row in rows if row.get("protocol", "tracking") == args.protocol}
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         for source in args.sources:
@@ -87,14 +95,18 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             policy = materialise(source, Path(tmp) / str(len(list(Path(tmp).iterdir()))))
             config = json.loads((policy / "config.json").read_text())
-            result = track_clips(policy)
-            row = {"source": source, "trained_iterations": config.get("trained_iterations"),
+            if args.protocol == "tracking":
+                result = track_clips(policy)
+                shown = ("clip_success_rate", "mean_pos_error_m", "max_pos_error_m", "mean_rot_error_rad")
+            else:
+                result = evaluate(str(policy), envs=32, seconds=60.0, stage=3, seed=0)
+                shown = ("episodes_ended", "falls", "mean_path_error_m")
+            row = {"source": source, "protocol": args.protocol, "trained_iterations": config.get("trained_iterations"),
                    "trained_steps": config.get("trained_steps"), **result}
             row["policy_dir"] = str(policy) if not str(policy).startswith(tmp) else None
             with out.open("a") as f:
                 f.write(json.dumps(row) + "\n")
-            print(json.dumps({k: row[k] for k in ("source", "trained_steps", "clip_success_rate", "mean_pos_error_m",
-                                                  "max_pos_error_m", "mean_rot_error_rad")}))
+            print(json.dumps({k: row[k] for k in ("source", "trained_steps", *shown)}))
     return 0
 
 

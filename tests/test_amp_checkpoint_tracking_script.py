@@ -34,6 +34,22 @@ def test_sources_are_exported_tracked_and_skipped_when_done(script, tmp_path, mo
     assert rows[0]["source"] == str(policy) and rows[0]["trained_steps"] > 0 and rows[0]["clip_success_rate"] == 0.5
 
 
+def test_the_path_task_protocol_has_its_own_rows(script, tmp_path, monkeypatch):
+    monkeypatch.setattr(script, "track_clips", lambda policy: {"clip_success_rate": 0.5, "mean_pos_error_m": 0.2,
+                                                               "max_pos_error_m": 0.3, "mean_rot_error_rad": 0.4})
+    calls = []
+    monkeypatch.setattr(script, "evaluate", lambda policy, **kw: calls.append(kw) or {
+        "episodes_ended": 3, "falls": 1, "mean_path_error_m": 0.25})
+    policy = str(ROOT / "policies" / "amp_pedestrian")
+    out = tmp_path / "rows.jsonl"
+    assert script.main([policy, "--out", str(out)]) == 0
+    assert script.main([policy, "--out", str(out), "--protocol", "path3"]) == 0  # not skipped: another protocol
+    assert script.main([policy, "--out", str(out), "--protocol", "path3"]) == 0  # skipped
+    rows = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [r["protocol"] for r in rows] == ["tracking", "path3"] and rows[1]["falls"] == 1
+    assert calls == [{"envs": 32, "seconds": 60.0, "stage": 3, "seed": 0}]
+
+
 def test_a_training_folder_is_exported_from_its_parts(script, tmp_path):
     """The committed run folder (state.pt.part-*, meta.json) becomes an exported policy of its iteration."""
     run = ROOT / "training" / "amp_scratch"

@@ -228,15 +228,11 @@ def follow_scene(scene: str, n: int, seconds: float = 200.0, seed: int = 0, poli
     """
     if human_model not in ("amp", "kinematic"):
         raise ValueError(f"human_model must be 'amp' or 'kinematic', got {human_model!r}")
-    import torch
+    from navzoo.torch_threads import one_torch_thread
 
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
+    with one_torch_thread():
         return _follow_scene(scene, n, seconds, seed, policy_dir, pose_every, max_poses, crowd_model, human_model,
                              env_overrides, steering_trim)
-    finally:
-        torch.set_num_threads(threads)
 
 
 def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str | None, pose_every: int,

@@ -19,6 +19,7 @@ from navzoo.agents.amp.checkpoint import load_policy
 from navzoo.agents.amp.features import FEATURE_DIM, N_RAYS
 from navzoo.agents.amp.path_env import AmpPathEnv, PathTaskConfig
 from navzoo.agents.amp.train import locomotion_reference
+from navzoo.torch_threads import one_torch_thread
 
 
 def evaluate(policy_dir: str, envs: int = 16, seconds: float = 30.0, stage: int = 1, seed: int = 123,
@@ -26,7 +27,14 @@ def evaluate(policy_dir: str, envs: int = 16, seconds: float = 30.0, stage: int 
              door_prob: float = 0.0) -> dict[str, Any]:
     """``steering_trim`` / ``symmetric`` override the policy's own settings (None keeps them; see
     :meth:`navzoo.agents.amp.checkpoint.AmpPolicy.override`); ``door_prob`` (stage 3, a policy with
-    obstacle rays): share of patches split by a wall with a door, as in training."""
+    obstacle rays): share of patches split by a wall with a door, as in training. Runs on one torch thread
+    (:func:`navzoo.torch_threads.one_torch_thread`), so the figures do not depend on the caller's thread count."""
+    with one_torch_thread():
+        return _evaluate(policy_dir, envs, seconds, stage, seed, pd_mode, steering_trim, symmetric, door_prob)
+
+
+def _evaluate(policy_dir: str, envs: int, seconds: float, stage: int, seed: int, pd_mode: str,
+              steering_trim: float | None, symmetric: bool | None, door_prob: float) -> dict[str, Any]:
     policy = load_policy(policy_dir)
     if steering_trim is not None or symmetric is not None:
         policy.override(steering_trim, symmetric)

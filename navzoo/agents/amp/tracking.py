@@ -85,6 +85,7 @@ from navzoo.agents.amp.sim import PhysicsHumanoids, actions_to_targets
 from navzoo.agents.motion_lib import DEFAULT_NAME, LINK_NAMES, MotionLibrary, humanoid_fk
 from navzoo.agents.quat import quat_angle, quat_conj, quat_mul, quat_normalize
 from navzoo.agents.reference import ReferenceState
+from navzoo.torch_threads import one_torch_thread
 
 #: A clip fails once the per-step mean rigid-body position error exceeds this (m).
 FAIL_THRESHOLD_M = 0.5
@@ -436,14 +437,10 @@ def track_clips(
     per_clip: list[dict[str, Any]] = []
     # one torch thread, however many the caller has: the policy's float sums, and so a few clips' outcomes,
     # depend on the thread count (on the 2-core VM, 2 threads against 1 moved 3 of 78 clips of one checkpoint)
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
+    with one_torch_thread():
         for b in range(0, len(idx), int(batch_size)):
             per_clip += _track_batch(policy, lib, idx[b : b + int(batch_size)], max_seconds, cfg,
                                      float(fail_threshold), bool(stop_on_failure), path_end)
-    finally:
-        torch.set_num_threads(threads)
     wall = time.perf_counter() - t0
 
     def mean(key: str, rows: list[dict[str, Any]]) -> float | None:
