@@ -30,6 +30,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from navzoo.agents.amp.checkpoint import join_split_checkpoint
 from navzoo.agents.amp.evaluate import evaluate
 from navzoo.agents.amp.tracking import track_clips
 from navzoo.agents.amp.train import export_from_checkpoint
@@ -44,15 +45,6 @@ def _git_show(rev: str, path: str) -> bytes:
     return subprocess.run(["git", "show", f"{rev}:{path}"], check=True, capture_output=True).stdout
 
 
-def _export(parts: list[bytes], meta: bytes, work: Path, name: str) -> Path:
-    """Join a checkpoint's state.pt parts, write it with its meta.json and export its policy."""
-    ckpt = work / f"ckpt_{name}"
-    ckpt.mkdir(parents=True)
-    (ckpt / "state.pt").write_bytes(b"".join(parts))
-    (ckpt / "meta.json").write_bytes(meta)
-    return export_from_checkpoint(ckpt, work / f"policy_{name}")
-
-
 def materialise(source: str, work: Path) -> Path:
     """An exported policy folder for ``source`` (see the module doc)."""
     if source.startswith("git:"):
@@ -60,20 +52,21 @@ def materialise(source: str, work: Path) -> Path:
             _, rev, folder = source.split(":", 2)
         except ValueError:
             raise SystemExit(f"{source}: expected git:REV:FOLDER") from None
-        files = _git_files(rev, folder)
-        parts = sorted(f for f in files if f.startswith("state.pt.part-"))
-        if not parts or "meta.json" not in files:
-            raise SystemExit(f"{source}: no state.pt.part-* and meta.json at {rev}:{folder}")
-        return _export([_git_show(rev, f"{folder}/{p}") for p in parts], _git_show(rev, f"{folder}/meta.json"),
-                       work, rev)
-    path = Path(source)
-    if (path / "config.json").exists() and (path / "policy.pt").exists():
-        return path
-    parts = sorted(path.glob("state.pt.part-*"))
-    if not parts or not (path / "meta.json").exists():
+        files = [f for f in _git_files(rev, folder) if f.startswith("state.pt.part-") or f == "meta.json"]
+        path = work / f"git_{rev}"
+        path.mkdir(parents=True)
+        for f in files:
+            (path / f).write_bytes(_git_show(rev, f"{folder}/{f}"))
+    else:
+        path = Path(source)
+        if (path / "config.json").exists() and (path / "policy.pt").exists():
+            return path
+    try:
+        ckpt = join_split_checkpoint(path, work / f"ckpt_{path.name}")
+    except FileNotFoundError as e:
         raise SystemExit(f"{source}: neither an exported policy (config.json, policy.pt) nor a training folder "
-                         "(meta.json, state.pt.part-*)")
-    return _export([p.read_bytes() for p in parts], (path / "meta.json").read_bytes(), work, path.name)
+                         f"({e})") from None
+    return export_from_checkpoint(ckpt, work / f"policy_{path.name}")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -35,7 +35,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -169,16 +168,8 @@ def load_training_checkpoint(path: Path) -> tuple[dict[str, Any], dict[str, Any]
     """Tensors and meta of a training checkpoint directory holding ``state.pt`` or ``state.pt.part-*``."""
     if (path / ckpt.STATE_FILE).is_file():
         return ckpt.load_checkpoint(path)
-    parts = sorted(path.glob(f"{ckpt.STATE_FILE}.part-*"))
-    if not parts:
-        raise FileNotFoundError(f"{path}: neither {ckpt.STATE_FILE} nor {ckpt.STATE_FILE}.part-*")
     with tempfile.TemporaryDirectory() as tmp:
-        with open(Path(tmp) / ckpt.STATE_FILE, "wb") as out:
-            for part in parts:
-                with open(part, "rb") as f:
-                    shutil.copyfileobj(f, out)
-        shutil.copy(path / ckpt.META_FILE, Path(tmp) / ckpt.META_FILE)
-        return ckpt.load_checkpoint(tmp)  # checks the sha256 of the reassembled state.pt
+        return ckpt.load_checkpoint(ckpt.join_split_checkpoint(path, tmp))  # checks the joined state's sha256
 
 
 def discriminator_of(tensors: dict[str, Any], meta: dict[str, Any]):

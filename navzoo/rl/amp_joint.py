@@ -460,16 +460,8 @@ def shipped_training_checkpoint(dst: str | Path) -> Path:
     from navzoo.agents.amp import checkpoint as ckpt
     from navzoo.agents.amp.pedestrian_policy import default_policy_dir
 
-    parts = sorted(SHIPPED_STATE.glob("state.pt.part-*"))
-    if not parts or not (SHIPPED_STATE / "meta.json").is_file():
-        raise FileNotFoundError(f"{SHIPPED_STATE} holds no training checkpoint (state.pt.part-* and meta.json)")
     name = (SHIPPED_STATE / "name").read_text().strip()
-    raw = Path(dst) / "committed" / name
-    raw.mkdir(parents=True, exist_ok=True)
-    with open(raw / ckpt.STATE_FILE, "wb") as f:
-        for part in parts:
-            f.write(part.read_bytes())
-    shutil.copy(SHIPPED_STATE / "meta.json", raw / ckpt.META_FILE)
+    raw = ckpt.join_split_checkpoint(SHIPPED_STATE, Path(dst) / "committed" / name)
     out = ckpt.checkpoint_with_policy(raw, default_policy_dir(), Path(dst) / "shipped")
     shutil.rmtree(raw.parent, ignore_errors=True)
     return out

@@ -210,6 +210,23 @@ def latest_checkpoint(ckpt_dir: str | os.PathLike[str]) -> Path | None:
     return ckpts[-1] if ckpts else None
 
 
+def join_split_checkpoint(src: str | os.PathLike[str], dst: str | os.PathLike[str]) -> Path:
+    """Write ``dst/state.pt`` and ``dst/meta.json`` from a committed training folder ``src`` whose state is split
+    in ``state.pt.part-*`` files (the device tool returns files of at most 16 MiB); returns ``dst``, a checkpoint
+    directory for :func:`load_checkpoint` (which checks the joined state against the sha256 in ``meta.json``)."""
+    src, dst = Path(src), Path(dst)
+    parts = sorted(src.glob(f"{STATE_FILE}.part-*"))
+    if not parts or not (src / META_FILE).is_file():
+        raise FileNotFoundError(f"{src} holds no training checkpoint ({STATE_FILE}.part-* and {META_FILE})")
+    dst.mkdir(parents=True, exist_ok=True)
+    with open(dst / STATE_FILE, "wb") as out:
+        for part in parts:
+            with open(part, "rb") as f:
+                shutil.copyfileobj(f, out)
+    shutil.copy(src / META_FILE, dst / META_FILE)
+    return dst
+
+
 def load_checkpoint(path: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[str, Any]]:
     """Read and verify one checkpoint (a ``ckpt_*`` directory, or its ``state.pt``/``meta.json``).
 
