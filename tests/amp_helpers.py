@@ -33,3 +33,20 @@ def peak_target_pace(env: Any, monkeypatch: Any, constant: str, values: tuple[fl
         pace = np.linalg.norm(np.diff(env.amp.paths, axis=1), axis=2) * amp_humans.CONTROL_HZ
         peak[value] = pace.max(axis=1)
     return peak
+
+
+def threads_seen(monkeypatch: Any, module: Any, name: str, call: Any) -> tuple[list[int], int]:
+    """Run ``call()`` from a caller with two torch threads, with ``module.name`` wrapped to record the thread
+    count it runs under: (the counts seen, one per call of it; the caller's count afterwards)."""
+    import torch
+
+    seen: list[int] = []
+    real = getattr(module, name)
+    monkeypatch.setattr(module, name, lambda *a, **k: seen.append(torch.get_num_threads()) or real(*a, **k))
+    before = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        call()
+        return seen, torch.get_num_threads()
+    finally:
+        torch.set_num_threads(before)

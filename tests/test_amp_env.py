@@ -222,15 +222,8 @@ def test_the_optional_progress_reward_pays_for_walking_toward_the_path_and_chang
 def test_follow_scene_runs_on_one_torch_thread_and_gives_the_callers_back(monkeypatch):
     """One torch thread whoever calls it, so ``--workers 1`` and pool workers sum floats alike (a two-thread
     inline run walked other trips than the pool's single-thread runs of the same seed)."""
-    import torch
+    from tests.amp_helpers import threads_seen
 
-    seen = []
-    real = pedestrians._make
-    monkeypatch.setattr(pedestrians, "_make", lambda *a, **k: seen.append(torch.get_num_threads()) or real(*a, **k))
-    before = torch.get_num_threads()
-    torch.set_num_threads(2)
-    try:
-        pedestrians.follow_scene("lobby", 2, seconds=0.5, seed=0, pose_every=0)
-        assert seen == [1] and torch.get_num_threads() == 2
-    finally:
-        torch.set_num_threads(before)
+    seen, after = threads_seen(monkeypatch, pedestrians, "_make",
+                               lambda: pedestrians.follow_scene("lobby", 2, seconds=0.5, seed=0, pose_every=0))
+    assert seen == [1] and after == 2

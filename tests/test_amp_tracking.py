@@ -139,20 +139,11 @@ def test_short_tracking_run(short_run):
 def test_tracking_runs_on_one_torch_thread_and_gives_the_callers_back(monkeypatch):
     """The policy's float sums depend on the thread count (two threads against one moved 3 of 78 clips of a
     checkpoint on the 2-core VM), so the protocol runs on one, whatever the caller has set."""
-    import torch
-
     from navzoo.agents.amp import tracking
+    from tests.amp_helpers import threads_seen
 
-    seen = []
-    real = tracking._track_batch
-    monkeypatch.setattr(tracking, "_track_batch", lambda *a, **k: seen.append(torch.get_num_threads()) or real(*a, **k))
-    before = torch.get_num_threads()
-    torch.set_num_threads(2)
-    try:
-        track_clips(clips=[0], max_seconds=0.2)
-        assert seen == [1] and torch.get_num_threads() == 2
-    finally:
-        torch.set_num_threads(before)
+    seen, after = threads_seen(monkeypatch, tracking, "_track_batch", lambda: track_clips(clips=[0], max_seconds=0.2))
+    assert seen == [1] and after == 2
 
 
 def test_cli_prints_json(capsys):
