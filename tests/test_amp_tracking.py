@@ -10,9 +10,17 @@ import pytest
 
 from navzoo import sim as nzsim
 from navzoo.agents.amp.sim import PhysicsHumanoids
-from navzoo.agents.amp.tracking import DEFAULT_POLICY_DIR, main, rigid_body_errors, track_clips
+from navzoo.agents.amp.tracking import (
+    DEFAULT_POLICY_DIR,
+    ROT_PART_KEYS,
+    main,
+    rigid_bodies,
+    rigid_body_errors,
+    rotation_parts,
+    track_clips,
+)
 from navzoo.agents.amp.train import locomotion_reference
-from navzoo.agents.quat import quat_about_z, quat_mul
+from navzoo.agents.quat import heading, quat_about_z, quat_from_rotvec, quat_mul
 from navzoo.agents.reference import ReferenceState
 
 CLIPS = ["amp_walk", "cmu_07_12", "cmu_16_27"]
@@ -55,6 +63,39 @@ def test_error_of_a_reference_against_itself_and_moved_copies(library):
     np.testing.assert_allclose(rigid_body_errors(flipped, ref)[1], 0.0, atol=1e-7)
     with pytest.raises(ValueError, match="batch"):
         rigid_body_errors(library.state_at(np.array([0]), np.array([0.0])), ref)
+
+
+def test_rotation_parts_tell_heading_tilt_and_pose_apart(library):
+    ref = library.state_at(np.array([0, 5, 20]), np.array([0.0, 1.0, 2.5]))
+
+    def parts(other):
+        return rotation_parts(rigid_bodies(other)[1], rigid_bodies(ref)[1])
+
+    for value in parts(ref):
+        np.testing.assert_allclose(value, 0.0, atol=1e-6)
+    # Turned about the vertical: all heading, no tilt, the same pose.
+    yaw, tilt, pose = parts(_replace(ref, root_quat=quat_mul(quat_about_z(np.full(3, 0.3)), np.asarray(ref.root_quat))))
+    np.testing.assert_allclose(yaw, 0.3, atol=1e-9)
+    np.testing.assert_allclose(tilt, 0.0, atol=1e-6)
+    np.testing.assert_allclose(pose, 0.0, atol=1e-6)
+    # Leaning forward about the body's horizontal side axis: tilt only (the heading stays).
+    q = np.asarray(ref.root_quat)
+    h = heading(q)
+    side = np.stack([-np.sin(h), np.cos(h), np.zeros(3)], axis=1)
+    leaned = quat_mul(quat_from_rotvec(0.2 * side), q)
+    np.testing.assert_allclose(heading(leaned), h, atol=1e-9)
+    yaw, tilt, pose = parts(_replace(ref, root_quat=leaned))
+    np.testing.assert_allclose(yaw, 0.0, atol=1e-9)
+    np.testing.assert_allclose(tilt, 0.2, atol=1e-6)
+    np.testing.assert_allclose(pose, 0.0, atol=1e-6)
+    # One knee bent further by 0.7 rad: a pose error only; the knee link and the ankle below it turn
+    # by 0.7 relative to the root, the other 12 of the 14 links not at all.
+    rev = np.array(ref.rev, copy=True)
+    rev[:, 0] -= 0.7
+    yaw, tilt, pose = parts(_replace(ref, rev=rev))
+    np.testing.assert_allclose(yaw, 0.0, atol=1e-9)
+    np.testing.assert_allclose(tilt, 0.0, atol=1e-9)
+    np.testing.assert_allclose(pose, 2 * 0.7 / 14, atol=1e-9)
 
 
 def test_reference_state_initialisation_puts_the_body_exactly_on_the_reference(library):
@@ -128,6 +169,9 @@ def test_short_tracking_run(short_run):
         assert c["failed"] == (c["max_pos_error_m"] > 0.5)
         if not c["failed"]:
             assert c["tracked_s"] == pytest.approx(1.0)
+    for key in ROT_PART_KEYS:  # where the rotation error comes from: per clip and overall
+        assert 0.0 <= r[key] <= math.pi and all(0.0 <= c[key] <= math.pi for c in r["per_clip"])
+        assert r[key] == pytest.approx(np.mean([c[key] for c in r["per_clip"]]))
     by_body = r["mean_rot_error_by_body_rad"]
     assert list(by_body)[:3] == ["root", "chest", "neck"] and len(by_body) == 15
     assert np.mean(list(by_body.values())) == pytest.approx(r["mean_rot_error_rad"])

@@ -83,7 +83,8 @@ from navzoo.agents.amp.features import (
 from navzoo.agents.amp.path_env import PathTaskConfig
 from navzoo.agents.amp.sim import PhysicsHumanoids, actions_to_targets
 from navzoo.agents.motion_lib import DEFAULT_NAME, LINK_NAMES, MotionLibrary, humanoid_fk
-from navzoo.agents.quat import quat_angle, quat_conj, quat_mul, quat_normalize
+from navzoo.agents.quat import heading as quat_heading
+from navzoo.agents.quat import quat_about_z, quat_angle, quat_conj, quat_mul, quat_normalize
 from navzoo.agents.reference import ReferenceState
 from navzoo.torch_threads import one_torch_thread
 
@@ -96,6 +97,8 @@ DEFAULT_POLICY_DIR = Path(__file__).resolve().parents[3] / "policies" / "amp_ped
 N_BODIES = 15
 
 StateLike = ReferenceState | dict[str, np.ndarray]
+#: Per-clip and summary keys of :func:`rotation_parts`' three errors.
+ROT_PART_KEYS = ("mean_root_heading_error_rad", "mean_root_tilt_error_rad", "mean_pose_rot_error_rad")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -138,6 +141,29 @@ def body_errors(
     # 2 arccos |<q_a, q_b>|, computed as the angle of q_a^-1 q_b (accurate near zero).
     rot_err = quat_angle(quat_mul(quat_conj(np.asarray(quat_a)), np.asarray(quat_b)))
     return (pos_err, rot_err) if per_body else (pos_err.mean(axis=-1), rot_err.mean(axis=-1))
+
+
+def rotation_parts(quat_a: np.ndarray, quat_b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where a rotation error comes from, for link frames (..., 15, 4) (body 0 = the root link):
+
+    - the root's heading error (rad, |yaw difference| wrapped to [0, pi]);
+    - the root's tilt error (rad): the geodesic angle between the two root orientations with their
+      headings removed (leaning, rolling);
+    - the pose error (rad): the mean over the 14 other links of the geodesic angle between their
+      orientations relative to their own root, i.e. the rotation error of the two poses put on one root.
+
+    Three arrays of shape (...). A body that walks the clip's pose with a turned root has a pose error of 0."""
+    qa = np.asarray(quat_a, dtype=np.float64)
+    qb = np.asarray(quat_b, dtype=np.float64)
+    ha, hb = quat_heading(qa[..., 0, :]), quat_heading(qb[..., 0, :])
+    yaw = np.abs(np.angle(np.exp(1j * (ha - hb))))
+    tilt_a = quat_mul(quat_about_z(-ha), qa[..., 0, :])
+    tilt_b = quat_mul(quat_about_z(-hb), qb[..., 0, :])
+    tilt = quat_angle(quat_mul(quat_conj(tilt_a), tilt_b))
+    loc_a = quat_mul(np.broadcast_to(quat_conj(qa[..., :1, :]), qa[..., 1:, :].shape), qa[..., 1:, :])
+    loc_b = quat_mul(np.broadcast_to(quat_conj(qb[..., :1, :]), qb[..., 1:, :].shape), qb[..., 1:, :])
+    pose = quat_angle(quat_mul(quat_conj(loc_a), loc_b)).mean(axis=-1)
+    return yaw, tilt, pose
 
 
 def rigid_body_errors(state: StateLike, reference: StateLike) -> tuple[np.ndarray, np.ndarray]:
@@ -295,6 +321,7 @@ def _track_batch(
     pos_err = np.full((n, max_steps), np.nan)
     rot_err = np.full((n, max_steps), np.nan)
     rot_body = np.full((n, max_steps, N_BODIES), np.nan)  # per-body geodesic errors
+    rot_parts = np.full((n, max_steps, 3), np.nan)  # root heading, root tilt, pose (rotation_parts)
     fail_step = np.full(n, -1)
     fall_step = np.full(n, -1)
     tracked = np.zeros(n, dtype=int)
@@ -324,6 +351,7 @@ def _track_batch(
             pos_err[active, step - 1] = pe[active]
             rot_err[active, step - 1] = rb[active].mean(axis=-1)
             rot_body[active, step - 1] = rb[active]
+            rot_parts[active, step - 1] = np.stack(rotation_parts(sim_quat, ref_quat[:, step]), axis=-1)[active]
             tracked[active] = step
             fallen = bodies.fallen()
             fall_step[active & fallen & (fall_step < 0)] = step
@@ -349,6 +377,7 @@ def _track_batch(
             "mean_rot_error_rad": float(np.mean(re)),
             "max_rot_error_rad": float(np.max(re)),
             "mean_rot_error_by_body_rad": np.mean(rot_body[i, : tracked[i]], axis=0).tolist(),
+            **dict(zip(ROT_PART_KEYS, np.mean(rot_parts[i, : tracked[i]], axis=0).tolist(), strict=True)),
             "failed": bool(fail_step[i] > 0),
             "fail_time_s": float(fail_step[i] * dt) if fail_step[i] > 0 else None,
             "fell": bool(fall_step[i] > 0),
@@ -460,6 +489,8 @@ def track_clips(
         "success_mean_pos_error_m": mean("mean_pos_error_m", ok),
         "success_max_pos_error_m": mean("max_pos_error_m", ok),
         "success_mean_rot_error_rad": mean("mean_rot_error_rad", ok),
+        # where the rotation error comes from (rotation_parts), means over clips of the per-clip means
+        **{k: mean(k, per_clip) for k in ROT_PART_KEYS},
         # mean over clips of each body's mean rotation error (the mean of these is mean_rot_error_rad)
         "mean_rot_error_by_body_rad": dict(zip(LINK_NAMES, np.mean([r["mean_rot_error_by_body_rad"] for r in per_clip],
                                                                   axis=0).tolist(), strict=True)),
