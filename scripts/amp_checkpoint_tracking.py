@@ -15,8 +15,8 @@ Each source is one of
 
 For every source one JSON line is appended to ``--out``: the checkpoint's iteration and samples, the protocol,
 and its summary (tracking: ``navzoo.agents.amp.tracking.track_clips`` over all packaged locomotion clips, no
-steering trim unless the policy's config has one). A source already in ``--out`` with the same protocol is
-skipped, so an interrupted run resumes.
+steering trim unless the policy's config has one). A source already in ``--out`` with the same protocol and
+checkpoint (iteration) is skipped, so an interrupted run resumes.
 Tracking runs on one torch thread (track_clips sees to it) and is deterministic on one kind of CPU; it takes
 about 15-20 s per policy on a 2-core VM.
 """
@@ -79,15 +79,17 @@ def main(argv: list[str] | None = None) -> int:
     done = set()
     if out.exists():
         rows = [json.loads(line) for line in out.read_text().splitlines() if line.strip()]
-        done = {row["source"] for row in rows if row.get("protocol", "tracking") == args.protocol}
+        # a training folder holds another checkpoint after each run: a source is done per checkpoint
+        done = {(row["source"], row.get("trained_iterations")) for row in rows
+                if row.get("protocol", "tracking") == args.protocol}
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         for source in args.sources:
-            if source in done:
-                print(f"{source}: already in {out}", file=sys.stderr)
-                continue
             policy = materialise(source, Path(tmp) / str(len(list(Path(tmp).iterdir()))))
             config = json.loads((policy / "config.json").read_text())
+            if (source, config.get("trained_iterations")) in done:
+                print(f"{source} (iteration {config.get('trained_iterations')}): already in {out}", file=sys.stderr)
+                continue
             if args.protocol == "tracking":
                 result = track_clips(policy)
                 shown = ("clip_success_rate", "mean_pos_error_m", "max_pos_error_m", "mean_rot_error_rad")

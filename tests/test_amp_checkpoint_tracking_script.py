@@ -66,3 +66,18 @@ def test_bad_sources_are_named(script, tmp_path):
         script.materialise(str(tmp_path), tmp_path / "w")
     with pytest.raises(SystemExit, match="git:REV:FOLDER"):
         script.materialise("git:only-one-part", tmp_path / "w")
+
+
+def test_a_folder_with_a_newer_checkpoint_is_tracked_again(script, tmp_path, monkeypatch):
+    """A training folder's row is per checkpoint: after another run the same folder is a new source."""
+    monkeypatch.setattr(script, "track_clips", lambda policy: {"clip_success_rate": 0.5, "mean_pos_error_m": 0.2,
+                                                               "max_pos_error_m": 0.3, "mean_rot_error_rad": 0.4})
+    policy = str(ROOT / "policies" / "amp_pedestrian")
+    out = tmp_path / "rows.jsonl"
+    config = json.loads((Path(policy) / "config.json").read_text())
+    older = {"source": policy, "protocol": "tracking", "trained_iterations": config["trained_iterations"] - 1}
+    out.write_text(json.dumps(older) + "\n")
+    assert script.main([policy, "--out", str(out)]) == 0  # the row there is of another checkpoint
+    assert script.main([policy, "--out", str(out)]) == 0  # now done
+    rows = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [r["trained_iterations"] for r in rows] == [older["trained_iterations"], config["trained_iterations"]]
