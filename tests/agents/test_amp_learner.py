@@ -646,3 +646,23 @@ def test_train_flags_reach_the_learner_config(tmp_path: Path, monkeypatch) -> No
         run(TrainArgs(**ns))
     assert (seen["config"].task_weight, seen["config"].actor_lr) == (1.0, 2e-5)
     assert (TrainArgs().task_weight, TrainArgs().actor_lr) == (AmpConfig().task_weight, AmpConfig().actor_lr)
+
+
+def test_actor_warmup_holds_the_actor_while_critic_and_discriminator_learn() -> None:
+    learner = AmpLearner(_toy(8, episode_steps=12), toy_amp_config(actor_warmup_iters=2))
+
+    def snap(net):
+        return {k: v.clone() for k, v in net.state_dict().items()}
+
+    actor0, critic0, disc0 = snap(learner.actor), snap(learner.critic), snap(learner.disc)
+    for _ in range(2):  # iterations 0 and 1: the actor waits
+        learner.collect(8)
+        learner.update()
+    assert all(torch.equal(v, actor0[k]) for k, v in learner.actor.state_dict().items())
+    assert not all(torch.equal(v, critic0[k]) for k, v in learner.critic.state_dict().items())
+    assert not all(torch.equal(v, disc0[k]) for k, v in learner.disc.state_dict().items())
+    learner.collect(8)
+    learner.update()  # iteration 2: the actor moves
+    assert not all(torch.equal(v, actor0[k]) for k, v in learner.actor.state_dict().items())
+    with pytest.raises(ValueError, match="actor_warmup_iters"):
+        AmpConfig(actor_warmup_iters=-1)

@@ -162,6 +162,9 @@ class AmpConfig:
         ckpt_replay_rows: replay rows saved in a checkpoint (all of them when the buffer holds fewer:
             then a resume is exact; otherwise a uniform sample).
         keep_checkpoints: how many checkpoints ``train`` keeps.
+        actor_warmup_iters: the actor is not updated before this iteration (critic and discriminator are), e.g.
+            to fit a fresh critic to an actor that starts from behaviour cloning (:mod:`navzoo.agents.amp.bc`);
+            0 = off. The iteration counts from the start of the run, so a resumed run past it is unaffected.
     """
 
     seed: int = 0
@@ -202,6 +205,7 @@ class AmpConfig:
     norm_eps: float = 1e-5
     ckpt_replay_rows: int = 100_000
     keep_checkpoints: int = 3
+    actor_warmup_iters: int = 0
 
     def __post_init__(self) -> None:
         for name in ("actor_hidden", "critic_hidden", "disc_hidden"):
@@ -247,6 +251,8 @@ class AmpConfig:
             "style_weight",
             "task_weight",
         )
+        if not (isinstance(self.actor_warmup_iters, int) and self.actor_warmup_iters >= 0):
+            raise ValueError(f"AmpConfig.actor_warmup_iters must be an integer >= 0, got {self.actor_warmup_iters!r}")
         for name in non_negative:
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
@@ -619,7 +625,8 @@ class AmpLearner:
                     mirror_loss = (dist.mean - self._mirror[1](self.actor(mirrored_n[mb]))).square().sum(-1).mean()
                     actor_loss = actor_loss + cfg.mirror_coef * mirror_loss
                     log("losses/mirror", mirror_loss)
-                self._step(self.actor_opt, actor_loss, self.actor_params)
+                if self.iteration >= cfg.actor_warmup_iters:
+                    self._step(self.actor_opt, actor_loss, self.actor_params)
                 # Critic: MSE on (normalised) returns.
                 critic_loss = 0.5 * (self.critic(obs_n[mb]) - v_target[mb]).square().mean()
                 self._step(self.critic_opt, critic_loss, list(self.critic.parameters()))

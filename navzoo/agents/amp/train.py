@@ -97,6 +97,9 @@ class TrainArgs:
     # training checkpoints kept in <out>/checkpoints (AmpConfig.keep_checkpoints); keep more to resume from a
     # snapshot's iteration (with --ckpt-every dividing --snapshot-every)
     keep_checkpoints: int = 3
+    # the actor is not updated before this iteration (AmpConfig.actor_warmup_iters): a fresh critic learns the values
+    # of an actor that starts from behaviour cloning (navzoo.agents.amp.bc) before the actor moves
+    actor_warmup_iters: int = 0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -137,7 +140,8 @@ def run(args: TrainArgs) -> dict[str, Any]:
                        disc_grad_penalty=args.disc_grad_penalty, disc_logit_reg=args.disc_logit_reg,
                        disc_weight_decay=args.disc_weight_decay, mirror_coef=args.mirror_coef,
                        init_log_std=args.init_log_std, keep_checkpoints=args.keep_checkpoints,
-                       task_weight=args.task_weight, actor_lr=args.actor_lr)
+                       task_weight=args.task_weight, actor_lr=args.actor_lr,
+                       actor_warmup_iters=args.actor_warmup_iters)
     device = args.device if args.device != "cuda" or torch.cuda.is_available() else "cpu"
     (out / "train_args.json").write_text(json.dumps({**dataclasses.asdict(args), "task": dataclasses.asdict(task),
                                                      "learner": config.to_dict()}, indent=2, default=str))
