@@ -1,0 +1,237 @@
+"""A warm start for AMP training: behaviour cloning of the clips' own PD targets (an experiment, 2026-11-29).
+
+Why: clip tracking's rotation error compares the body's link orientations with the clip's, frame by frame.
+A clip compared with *itself* 0.2 s later already errs by 0.33 rad and 0.3 s later by 0.43 rad
+(docs/pedestrians.md, "What the rotation error measures"), so the paper's 0.343 rad needs a controller that
+continues the clip's own gait, in phase, from the reference state it starts in. The policies trained from
+random weights adopt a gait of their own within a few control steps (0.48-0.56 rad). This module gives the
+actor that continuation before any reinforcement learning:
+
+1. **oracle rollouts**: reference state initialisation at random (clip, time) starts of the training clips,
+   then each control step the PD targets are the clip's pose ``lead`` control steps ahead (the oracle of
+   stage 0; with the position motors it keeps the pose within 0.05 rad of the clip while the body is up, but
+   it has no balance feedback and falls after about a second). The executed targets carry Gaussian noise in
+   action units (the states spread like a noisy policy's, DART-style); the recorded labels are the clean
+   oracle actions. The observation is the policy's own (``policy_observation``: the simulator's state, the
+   clip's root path as the target waypoints, extended at its final velocity after its end, as in clip
+   tracking). Rollouts stop at falls;
+2. **regression**: an actor of the training architecture fitted to the labels (mean squared error on the
+   normalised observations; the observation normaliser is the data's mean and variance);
+3. **a training checkpoint** at iteration 0 of a ``navzoo train amp`` run (fresh critic and discriminator,
+   this actor and normaliser), which a run resumes with ``--any-num-envs 1``, and the exported policy.
+
+CLI::
+
+    python -m navzoo.agents.amp.bc --out runs/amp_bc --starts 4096 --seconds 1.5 --epochs 30 \\
+        --hidden 1024,512 --amp-velocity-span 4 --disc-lr 2e-5 --disc-grad-penalty 50 --disc-weight-decay 5e-4
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from navzoo import sim as nzsim
+from navzoo.agents.amp.features import policy_observation
+from navzoo.agents.amp.path_env import PathTaskConfig
+from navzoo.agents.amp.sim import PhysicsHumanoids, actions_to_targets, targets_to_actions
+from navzoo.agents.reference import ReferenceMotion, ReferenceState
+
+#: Humanoids per PyBullet client in the oracle rollouts (40 m apart, like clip tracking).
+BATCH = 64
+SPACING = 40.0
+#: The clip's final root velocity is its mean over this window (s), for the waypoints after its end.
+END_WINDOW_S = 0.25
+
+
+def _shift(state: ReferenceState, offset: np.ndarray) -> ReferenceState:
+    return dataclasses.replace(state, root_pos=np.asarray(state.root_pos) + offset)
+
+
+def clip_waypoints(ref: ReferenceMotion, clips: np.ndarray, times: np.ndarray, n: int, dt: float) -> np.ndarray:
+    """(B, n, 2) root positions of ``clips`` at ``times + dt * (1..n)``; after a clip's end the path goes on
+    at the clip's final root velocity (the mean over its last :data:`END_WINDOW_S`)."""
+    clips = np.asarray(clips, dtype=np.int64)
+    b = len(clips)
+    full = np.array([ref.duration(int(c)) for c in clips])
+    ahead = np.asarray(times, dtype=np.float64)[:, None] + dt * np.arange(1, n + 1)[None, :]  # (B, n)
+    inside = np.minimum(ahead, full[:, None])
+    pos = np.asarray(ref.state_at(np.repeat(clips, n), inside.reshape(-1)).root_pos)[:, :2].reshape(b, n, 2)
+    w = np.minimum(END_WINDOW_S, full)
+    end = np.asarray(ref.state_at(clips, full).root_pos)[:, :2]
+    before = np.asarray(ref.state_at(clips, full - w).root_pos)[:, :2]
+    vel = (end - before) / np.maximum(w, 1e-9)[:, None]
+    extra = end[:, None, :] + vel[:, None, :] * np.maximum(ahead - full[:, None], 0.0)[..., None]
+    return np.where((ahead > full[:, None])[..., None], extra, pos)
+
+
+def oracle_rollouts(ref: ReferenceMotion, starts: int, seconds: float = 1.5, lead: int = 2, noise: float = 0.055,
+                    seed: int = 0, config: PathTaskConfig | None = None) -> dict[str, np.ndarray]:
+    """Observations (M, obs_dim) and clean oracle actions (M, 28) of ``starts`` rollouts (see the module doc),
+    plus ``clip`` / ``time`` (M,) of each sample and ``up_s`` (starts,): how long each body stayed up."""
+    if starts < 1 or not seconds > 0 or lead < 1 or noise < 0:
+        raise ValueError(f"need starts >= 1, seconds > 0, lead >= 1, noise >= 0; got {starts}, {seconds}, {lead}, "
+                         f"{noise}")
+    cfg = config or PathTaskConfig()
+    rng = np.random.default_rng(seed)
+    n_clips = len(ref.clip_names())
+    clips_all = rng.integers(0, n_clips, starts)
+    dur = np.array([ref.duration(int(c)) for c in clips_all])
+    t_all = rng.uniform(0.0, 1.0, starts) * np.maximum(dur - 0.2, 0.0)
+    obs, act, clip_of, time_of = [], [], [], []
+    up_s = np.zeros(starts)
+    hz = cfg.control_hz
+    steps = int(round(seconds * hz))
+    for b0 in range(0, starts, BATCH):
+        sel = np.arange(b0, min(starts, b0 + BATCH))
+        n = len(sel)
+        clips, t0 = clips_all[sel], t_all[sel]
+        cols = int(np.ceil(np.sqrt(n)))
+        k = np.arange(n)
+        origin = np.stack([(k % cols) * SPACING, (k // cols) * SPACING, np.zeros(n)], axis=1)
+        first = np.asarray(ref.state_at(clips, t0).root_pos)
+        shift = origin - np.c_[first[:, :2], np.zeros(n)]
+        client = nzsim.connect()
+        try:
+            bodies = PhysicsHumanoids(client, n, physics_hz=cfg.physics_hz, control_hz=hz, pd_mode=cfg.pd_mode)
+            bodies.set_state(_shift(ref.state_at(clips, t0), shift))
+            up = np.ones(n, dtype=bool)
+            for step in range(steps):
+                t = t0 + step / hz
+                state = bodies.read_state()
+                wp = clip_waypoints(ref, clips, t, cfg.n_waypoints, cfg.waypoint_dt) + shift[:, None, :2]
+                o = policy_observation(state, wp)
+                tgt = ref.state_at(clips, np.minimum(t + lead / hz, dur[sel]))
+                a = np.clip(targets_to_actions(tgt.sph, tgt.rev), -1.0, 1.0)
+                obs.append(o[up])
+                act.append(a[up].astype(np.float32))
+                clip_of.append(clips[up])
+                time_of.append(t[up])
+                executed = np.clip(a + noise * rng.standard_normal(a.shape), -1.0, 1.0) if noise > 0 else a
+                bodies.apply_targets(*actions_to_targets(executed))
+                bodies.step()
+                up &= ~bodies.fallen()
+                up_s[sel[up]] = (step + 1) / hz
+                if not up.any():
+                    break
+        finally:
+            nzsim.disconnect(client)
+    return {"obs": np.concatenate(obs), "act": np.concatenate(act), "clip": np.concatenate(clip_of),
+            "time": np.concatenate(time_of), "up_s": up_s}
+
+
+def fit_actor(obs: np.ndarray, act: np.ndarray, hidden: tuple[int, ...] = (1024, 512), epochs: int = 30,
+              lr: float = 1e-3, batch: int = 512, val_frac: float = 0.1, seed: int = 0, init_log_std: float = -2.9,
+              obs_clip: float = 5.0, norm_eps: float = 1e-5, log: Any = print) -> tuple[Any, Any, dict[str, float]]:
+    """An :class:`~navzoo.agents.amp.networks.Actor` and a :class:`RunningMeanStd` fitted to (obs, act); returns
+    them and ``{"train_mse", "val_mse", "val_mse_zero"}`` (the last: predicting the mean action)."""
+    from navzoo.agents.amp.networks import Actor
+    from navzoo.agents.amp.normalizer import RunningMeanStd
+
+    if len(obs) != len(act) or len(obs) < 10:
+        raise ValueError(f"need matching obs and act with at least 10 rows, got {len(obs)} and {len(act)}")
+    gen = torch.Generator().manual_seed(seed)
+    norm = RunningMeanStd(obs.shape[1], norm_eps, obs_clip)
+    norm.update(torch.as_tensor(obs, dtype=torch.float64))
+    x = norm.normalize(torch.as_tensor(obs, dtype=torch.float32)).float()
+    y = torch.as_tensor(act, dtype=torch.float32)
+    perm = torch.randperm(len(x), generator=gen)
+    n_val = max(1, int(len(x) * val_frac))
+    val, tr = perm[:n_val], perm[n_val:]
+    actor = Actor(obs.shape[1], act.shape[1], hidden, "relu", init_log_std, False, gen)
+    opt = torch.optim.Adam([p for p in actor.parameters() if p.requires_grad], lr=lr)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=max(1, epochs))
+    train_mse = float("nan")
+    for ep in range(epochs):
+        order = tr[torch.randperm(len(tr), generator=gen)]
+        total = 0.0
+        for i in range(0, len(order), batch):
+            mb = order[i : i + batch]
+            loss = (actor(x[mb]) - y[mb]).square().mean()
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            total += float(loss.detach()) * len(mb)
+        sched.step()
+        train_mse = total / len(tr)
+        with torch.no_grad():
+            val_mse = float((actor(x[val]) - y[val]).square().mean())
+        if log and (ep % 5 == 0 or ep == epochs - 1):
+            log(f"epoch {ep + 1}/{epochs}: train mse {train_mse:.5f}, val mse {val_mse:.5f}")
+    with torch.no_grad():
+        val_mse = float((actor(x[val]) - y[val]).square().mean())
+        zero = float((y[tr].mean(0) - y[val]).square().mean())
+    return actor, norm, {"train_mse": train_mse, "val_mse": val_mse, "val_mse_zero": zero}
+
+
+def write_run(out: str | Path, actor: Any, norm: Any, learner_kw: dict[str, Any], task: PathTaskConfig,
+              reference: ReferenceMotion, seed: int = 0) -> dict[str, str]:
+    """Iteration 0 of a ``navzoo train amp`` run in ``out`` (``out/checkpoints``, ``out/policy``): a learner of
+    ``AmpConfig(**learner_kw)`` on a small :class:`AmpPathEnv`, with ``actor`` and ``norm`` put in."""
+    from navzoo.agents.amp.learner import AmpConfig, AmpLearner
+    from navzoo.agents.amp.path_env import AmpPathEnv
+
+    out = Path(out)
+    env = AmpPathEnv(4, reference, task, seed=seed)
+    try:
+        learner = AmpLearner(env, AmpConfig(seed=seed, **learner_kw), device="cpu")
+        learner.actor.load_state_dict(actor.state_dict())
+        learner.obs_norm.load_state_dict(norm.state_dict())
+        ckpt = learner.save_checkpoint(out / "checkpoints")
+        policy = learner.export_policy(out / "policy")
+    finally:
+        env.close()
+    return {"checkpoint": str(ckpt), "policy": str(policy)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    from navzoo.agents.amp.train import grounded_locomotion_reference
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--starts", type=int, default=4096)
+    ap.add_argument("--seconds", type=float, default=1.5)
+    ap.add_argument("--lead", type=int, default=2, help="oracle targets: the clip's pose this many control steps ahead")
+    ap.add_argument("--noise", type=float, default=0.055, help="action noise of the executed oracle targets")
+    ap.add_argument("--epochs", type=int, default=30)
+    ap.add_argument("--lr", type=float, default=1e-3)
+    ap.add_argument("--hidden", default="1024,512")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--stage", type=int, default=1)
+    ap.add_argument("--amp-velocity-span", type=int, default=1)
+    ap.add_argument("--disc-lr", type=float, default=1e-4)
+    ap.add_argument("--disc-grad-penalty", type=float, default=5.0)
+    ap.add_argument("--disc-weight-decay", type=float, default=1e-4)
+    ap.add_argument("--minibatch-size", type=int, default=1920)
+    a = ap.parse_args(argv)
+    hidden = tuple(int(h) for h in a.hidden.split(","))
+    t0 = time.time()
+    ref = grounded_locomotion_reference()
+    task = PathTaskConfig(stage=a.stage, amp_velocity_span=a.amp_velocity_span)
+    try:
+        data = oracle_rollouts(ref, a.starts, a.seconds, a.lead, a.noise, a.seed, task)
+    except ValueError as e:
+        ap.exit(2, f"error: {e}\n")
+    print(f"{len(data['obs'])} samples from {a.starts} starts; bodies up a median {np.median(data['up_s']):.2f} s "
+          f"({time.time() - t0:.0f} s)", flush=True)
+    actor, norm, fit = fit_actor(data["obs"], data["act"], hidden, a.epochs, a.lr, seed=a.seed)
+    learner_kw = {"actor_hidden": hidden, "critic_hidden": hidden, "disc_hidden": hidden,
+                  "minibatch_size": a.minibatch_size, "disc_lr": a.disc_lr, "disc_grad_penalty": a.disc_grad_penalty,
+                  "disc_weight_decay": a.disc_weight_decay}
+    paths = write_run(a.out, actor, norm, learner_kw, task, ref, a.seed)
+    summary = {"samples": int(len(data["obs"])), "starts": a.starts, "median_up_s": float(np.median(data["up_s"])),
+               **fit, **paths, "args": vars(a), "wall_s": round(time.time() - t0, 1)}
+    Path(a.out, "bc.json").write_text(json.dumps(summary, indent=1))
+    print(json.dumps({k: v for k, v in summary.items() if k != "args"}))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,109 @@
+"""The behaviour-cloning warm start of AMP training (navzoo.agents.amp.bc)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from navzoo.agents.amp.bc import clip_waypoints, fit_actor, main, oracle_rollouts, write_run
+from navzoo.agents.amp.checkpoint import latest_checkpoint, load_policy
+from navzoo.agents.amp.features import policy_observation
+from navzoo.agents.amp.path_env import PathTaskConfig
+from navzoo.agents.amp.sim import targets_to_actions
+from navzoo.agents.amp.train import grounded_locomotion_reference
+
+
+@pytest.fixture(scope="module")
+def ref():
+    return grounded_locomotion_reference()
+
+
+def test_waypoints_follow_the_clip_and_go_on_at_its_final_velocity(ref):
+    clips = np.array([0, 3])
+    t = np.array([0.2, 0.5])
+    wp = clip_waypoints(ref, clips, t, 10, 0.5)
+    assert wp.shape == (2, 10, 2)
+    for i, c in enumerate(clips):
+        d = ref.duration(int(c))
+        for k in range(10):
+            when = t[i] + 0.5 * (k + 1)
+            if when <= d:
+                np.testing.assert_allclose(wp[i, k], np.asarray(ref.state_at(np.array([c]), np.array([when])).root_pos)[0, :2])
+        after = [k for k in range(10) if t[i] + 0.5 * (k + 1) > d]
+        assert len(after) >= 2  # clips are shorter than 5 s: the path goes on after the end ...
+        steps = np.diff(wp[i, after], axis=0)
+        np.testing.assert_allclose(steps - steps[:1], 0.0, atol=1e-9)  # ... in a straight line at one speed
+
+
+def test_oracle_rollouts_label_the_clips_own_targets(ref):
+    cfg = PathTaskConfig()
+    data = oracle_rollouts(ref, 6, seconds=0.3, lead=2, noise=0.055, seed=1, config=cfg)
+    m = len(data["obs"])
+    assert data["obs"].shape == (m, 105 + 2 * cfg.n_waypoints) and data["act"].shape == (m, 28)
+    assert m > 6 * 5 and data["up_s"].shape == (6,) and (data["up_s"] > 0).all()
+    assert np.isfinite(data["obs"]).all() and np.abs(data["act"]).max() <= 1.0
+    # every label is the clean action of the clip's pose two control steps ahead
+    c, t = data["clip"], data["time"]
+    dur = np.array([ref.duration(int(x)) for x in c])
+    target = ref.state_at(c, np.minimum(t + 2 / cfg.control_hz, dur))
+    np.testing.assert_allclose(data["act"], np.clip(targets_to_actions(target.sph, target.rev), -1, 1), atol=1e-6)
+    # the first observation of each start is the reference state's own
+    first = data["time"][:6]
+    obs0 = policy_observation(
+        {k: v for k, v in __import__("navzoo.agents.amp.features", fromlist=["x"]).reference_state_dict(
+            ref.state_at(c[:6], first)).items()},
+        clip_waypoints(ref, c[:6], first, cfg.n_waypoints, cfg.waypoint_dt))
+    np.testing.assert_allclose(data["obs"][:6, :13], obs0[:, :13], atol=1e-4)  # height, tilt, root velocities
+    for bad in ({"starts": 0}, {"seconds": 0.0}, {"lead": 0}, {"noise": -1.0}):
+        kw = {"starts": 2, "seconds": 0.1, **bad}
+        with pytest.raises(ValueError, match="need starts"):
+            oracle_rollouts(ref, **kw)
+
+
+def test_fit_actor_learns_a_mapping_better_than_the_mean():
+    rng = np.random.default_rng(0)
+    obs = rng.normal(size=(3000, 12)) * np.linspace(0.1, 10, 12)
+    act = np.tanh(obs[:, :4] / np.linspace(0.1, 10, 12)[:4] @ rng.normal(size=(4, 28)) * 0.3).astype(np.float32)
+    actor, norm, fit = fit_actor(obs, act, (64, 64), epochs=20, lr=3e-3, log=None)
+    assert fit["val_mse"] < 0.2 * fit["val_mse_zero"]
+    with torch.no_grad():
+        pred = actor(norm.normalize(torch.as_tensor(obs[:5], dtype=torch.float32)).float()).numpy()
+    assert np.abs(pred - act[:5]).mean() < 0.1
+    with pytest.raises(ValueError, match="matching"):
+        fit_actor(obs[:5], act[:5])
+
+
+def test_the_run_resumes_from_the_cloned_actor(ref, tmp_path):
+    from navzoo.agents.amp.learner import AmpConfig, AmpLearner
+    from navzoo.agents.amp.path_env import AmpPathEnv
+
+    cfg = PathTaskConfig()
+    data = oracle_rollouts(ref, 4, seconds=0.2, seed=2, config=cfg)
+    actor, norm, _ = fit_actor(data["obs"], data["act"], (32, 32), epochs=2, log=None)
+    kw = {"actor_hidden": (32, 32), "critic_hidden": (32, 32), "disc_hidden": (32, 32)}
+    paths = write_run(tmp_path, actor, norm, kw, cfg, ref)
+    policy = load_policy(paths["policy"])
+    with torch.no_grad():
+        expect = actor(norm.normalize(torch.as_tensor(data["obs"][:3])).float()).numpy()
+    np.testing.assert_allclose(policy(data["obs"][:3]), np.clip(expect, -1, 1), atol=1e-5)
+    env = AmpPathEnv(2, ref, cfg, seed=0)  # another env count, as on the training host
+    try:
+        learner = AmpLearner(env, AmpConfig(**kw))
+        learner.load_checkpoint(latest_checkpoint(tmp_path / "checkpoints"), any_num_envs=True)
+        assert learner.iteration == 0
+        for k, v in actor.state_dict().items():
+            assert torch.equal(learner.actor.state_dict()[k].cpu(), v), k
+    finally:
+        env.close()
+
+
+def test_cli_writes_a_run_and_its_summary(tmp_path, capsys):
+    assert main(["--out", str(tmp_path), "--starts", "3", "--seconds", "0.2", "--epochs", "1", "--hidden", "16,16"]) == 0
+    summary = json.loads((tmp_path / "bc.json").read_text())
+    assert summary["samples"] > 0 and (tmp_path / "policy" / "policy.pt").exists()
+    assert latest_checkpoint(tmp_path / "checkpoints") is not None
+    with pytest.raises(SystemExit):
+        main(["--out", str(tmp_path / "x"), "--starts", "0"])
