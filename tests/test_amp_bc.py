@@ -107,3 +107,30 @@ def test_cli_writes_a_run_and_its_summary(tmp_path, capsys):
     assert latest_checkpoint(tmp_path / "checkpoints") is not None
     with pytest.raises(SystemExit):
         main(["--out", str(tmp_path / "x"), "--starts", "0"])
+
+
+def test_cloning_pairs_round_trip_and_bad_files_are_named(ref, tmp_path):
+    from navzoo.agents.amp.bc import load_data, save_data
+
+    data = oracle_rollouts(ref, 2, seconds=0.1, seed=3)
+    back = load_data(save_data(tmp_path / "pairs.npz", data))
+    for k in ("obs", "act", "clip", "time"):
+        np.testing.assert_array_equal(back[k], data[k])
+    with pytest.raises(FileNotFoundError, match="no behaviour-cloning data"):
+        load_data(tmp_path / "missing.npz")
+    (tmp_path / "junk.npz").write_bytes(b"not a zip")
+    with pytest.raises(ValueError, match="junk.npz"):
+        load_data(tmp_path / "junk.npz")
+    np.savez(tmp_path / "short.npz", obs=np.zeros((3, 4)), act=np.zeros((2, 28)))
+    with pytest.raises(ValueError, match="matching rows"):
+        load_data(tmp_path / "short.npz")
+    np.savez(tmp_path / "nan.npz", obs=np.full((3, 4), np.nan), act=np.zeros((3, 28)))
+    with pytest.raises(ValueError, match="non-finite"):
+        load_data(tmp_path / "nan.npz")
+
+
+def test_train_refuses_a_cloning_weight_without_pairs(tmp_path):
+    from navzoo.agents.amp.train import TrainArgs, run
+
+    with pytest.raises(ValueError, match="needs --bc-data"):
+        run(TrainArgs(out=str(tmp_path), bc_coef=1.0))

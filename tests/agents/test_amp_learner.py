@@ -666,3 +666,34 @@ def test_actor_warmup_holds_the_actor_while_critic_and_discriminator_learn() -> 
     assert not all(torch.equal(v, actor0[k]) for k, v in learner.actor.state_dict().items())
     with pytest.raises(ValueError, match="actor_warmup_iters"):
         AmpConfig(actor_warmup_iters=-1)
+
+
+def test_the_cloning_term_pulls_the_actor_to_the_pairs_actions() -> None:
+    env = _toy(8, episode_steps=12)
+    rng = np.random.default_rng(0)
+    obs = rng.normal(size=(256, env.obs_dim)).astype(np.float32)
+    target = np.full((256, env.act_dim), 0.6, dtype=np.float32)
+
+    def gap(learner):
+        with torch.no_grad():
+            mu = learner.actor(learner.obs_norm.normalize(torch.as_tensor(obs)).float()).numpy()
+        return float(np.abs(mu - target).mean())
+
+    plain = AmpLearner(env, toy_amp_config(actor_lr=1e-3))
+    cloned = AmpLearner(_toy(8, episode_steps=12), toy_amp_config(actor_lr=1e-3, bc_coef=10.0))
+    cloned.set_bc_data(obs, target)
+    for learner in (plain, cloned):
+        for _ in range(6):
+            learner.collect(8)
+            stats = learner.update()
+    assert "losses/bc" in stats and gap(cloned) < 0.5 * gap(plain)
+    with pytest.raises(ValueError, match="no behaviour-cloning pairs"):
+        lone = AmpLearner(_toy(8, episode_steps=12), toy_amp_config(bc_coef=1.0))
+        lone.collect(8)
+        lone.update()
+    with pytest.raises(ValueError, match="behaviour-cloning pairs must be"):
+        cloned.set_bc_data(obs[:, :2], target)
+    with pytest.raises(ValueError, match="non-finite"):
+        cloned.set_bc_data(np.full_like(obs, np.nan), target)
+    with pytest.raises(ValueError, match="bc_coef"):
+        AmpConfig(bc_coef=-1.0)

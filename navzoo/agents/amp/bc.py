@@ -24,6 +24,9 @@ CLI::
 
     python -m navzoo.agents.amp.bc --out runs/amp_bc --starts 4096 --seconds 1.5 --epochs 30 \\
         --hidden 1024,512 --amp-velocity-span 4 --disc-lr 2e-5 --disc-grad-penalty 50 --disc-weight-decay 5e-4
+
+With ``--data-out F.npz`` the cloning pairs are kept too, for the actor's cloning term during reinforcement
+learning (``navzoo train amp --bc-coef W --bc-data F.npz``, ``AmpConfig.bc_coef``).
 """
 
 from __future__ import annotations
@@ -127,6 +130,33 @@ def oracle_rollouts(ref: ReferenceMotion, starts: int, seconds: float = 1.5, lea
             "time": np.concatenate(time_of), "up_s": up_s}
 
 
+def save_data(path: str | Path, data: dict[str, np.ndarray]) -> Path:
+    """Write the cloning pairs (``obs``, ``act``, ``clip``, ``time``) to a compressed ``.npz`` (no pickles)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, **{k: np.asarray(data[k]) for k in ("obs", "act", "clip", "time")})
+    return path
+
+
+def load_data(path: str | Path) -> dict[str, np.ndarray]:
+    """Read cloning pairs written by :func:`save_data`; a file without ``obs`` and ``act`` of matching rows, or with
+    non-finite values, is refused with a message naming it."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no behaviour-cloning data at {path}")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError) as e:
+        raise ValueError(f"{path} is not a behaviour-cloning .npz ({e})") from None
+    obs, act = data.get("obs"), data.get("act")
+    if obs is None or act is None or obs.ndim != 2 or act.ndim != 2 or len(obs) != len(act) or len(obs) == 0:
+        raise ValueError(f"{path} must hold 'obs' (M, D) and 'act' (M, A) arrays with M > 0 matching rows")
+    if not (np.isfinite(obs).all() and np.isfinite(act).all()):
+        raise ValueError(f"{path} holds non-finite observations or actions")
+    return data
+
+
 def fit_actor(obs: np.ndarray, act: np.ndarray, hidden: tuple[int, ...] = (1024, 512), epochs: int = 30,
               lr: float = 1e-3, batch: int = 512, val_frac: float = 0.1, seed: int = 0, init_log_std: float = -2.9,
               obs_clip: float = 5.0, norm_eps: float = 1e-5, log: Any = print) -> tuple[Any, Any, dict[str, float]]:
@@ -210,6 +240,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--disc-grad-penalty", type=float, default=5.0)
     ap.add_argument("--disc-weight-decay", type=float, default=1e-4)
     ap.add_argument("--minibatch-size", type=int, default=1920)
+    ap.add_argument("--data-out", default=None, help="also write the cloning pairs to this .npz (for --bc-data of "
+                    "navzoo train amp)")
     a = ap.parse_args(argv)
     hidden = tuple(int(h) for h in a.hidden.split(","))
     t0 = time.time()
@@ -221,6 +253,8 @@ def main(argv: list[str] | None = None) -> int:
         ap.exit(2, f"error: {e}\n")
     print(f"{len(data['obs'])} samples from {a.starts} starts; bodies up a median {np.median(data['up_s']):.2f} s "
           f"({time.time() - t0:.0f} s)", flush=True)
+    if a.data_out:
+        print(f"cloning pairs -> {save_data(a.data_out, data)}", flush=True)
     actor, norm, fit = fit_actor(data["obs"], data["act"], hidden, a.epochs, a.lr, seed=a.seed)
     learner_kw = {"actor_hidden": hidden, "critic_hidden": hidden, "disc_hidden": hidden,
                   "minibatch_size": a.minibatch_size, "disc_lr": a.disc_lr, "disc_grad_penalty": a.disc_grad_penalty,

@@ -162,6 +162,10 @@ class AmpConfig:
         ckpt_replay_rows: replay rows saved in a checkpoint (all of them when the buffer holds fewer:
             then a resume is exact; otherwise a uniform sample).
         keep_checkpoints: how many checkpoints ``train`` keeps.
+        bc_coef: weight of a behaviour-cloning term on the actor, the mean over a minibatch of cloning pairs
+            (:meth:`AmpLearner.set_bc_data`) of the squared distance between the mean action and the pair's action,
+            summed over action dimensions; it keeps an actor cloned from the clips near their gait while PPO
+            teaches it balance (:mod:`navzoo.agents.amp.bc`). 0 = off; > 0 needs the pairs.
         actor_warmup_iters: the actor is not updated before this iteration (critic and discriminator are), e.g.
             to fit a fresh critic to an actor that starts from behaviour cloning (:mod:`navzoo.agents.amp.bc`);
             0 = off. The iteration counts from the start of the run, so a resumed run past it is unaffected.
@@ -206,6 +210,7 @@ class AmpConfig:
     ckpt_replay_rows: int = 100_000
     keep_checkpoints: int = 3
     actor_warmup_iters: int = 0
+    bc_coef: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("actor_hidden", "critic_hidden", "disc_hidden"):
@@ -250,6 +255,7 @@ class AmpConfig:
             "disc_weight_decay",
             "style_weight",
             "task_weight",
+            "bc_coef",
         )
         if not (isinstance(self.actor_warmup_iters, int) and self.actor_warmup_iters >= 0):
             raise ValueError(f"AmpConfig.actor_warmup_iters must be an integer >= 0, got {self.actor_warmup_iters!r}")
@@ -383,6 +389,9 @@ class AmpLearner:
         self.obs_norm = RunningMeanStd(self.obs_dim, cfg.norm_eps, cfg.obs_clip).to(self.device)
         self.amp_norm = RunningMeanStd(self.amp_obs_dim, cfg.norm_eps, cfg.obs_clip).to(self.device)
         self.value_norm = RunningMeanStd(1, cfg.norm_eps, clip=None).to(self.device)
+        #: behaviour-cloning pairs (observations, actions) for ``cfg.bc_coef`` (:meth:`set_bc_data`)
+        self.bc_obs: torch.Tensor | None = None
+        self.bc_act: torch.Tensor | None = None
         self.actor_params = [p for p in self.actor.parameters() if p.requires_grad]
         self.actor_opt = torch.optim.Adam(self.actor_params, lr=cfg.actor_lr, eps=cfg.adam_eps)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=cfg.critic_lr, eps=cfg.adam_eps)
@@ -547,11 +556,28 @@ class AmpLearner:
             return
         opt.step()
 
+    def set_bc_data(self, obs: np.ndarray, actions: np.ndarray) -> None:
+        """Behaviour-cloning pairs for the actor's cloning term (``AmpConfig.bc_coef``): raw observations
+        (M, obs_dim), normalised with the learner's observation normaliser at each update, and target actions
+        (M, act_dim) in the action box. Not saved in checkpoints: pass them again when resuming."""
+        obs = np.asarray(obs, dtype=np.float32)
+        actions = np.asarray(actions, dtype=np.float32)
+        if obs.ndim != 2 or obs.shape[1] != self.obs_dim or actions.shape != (len(obs), self.act_dim) or len(obs) < 1:
+            raise ValueError(f"behaviour-cloning pairs must be (M, {self.obs_dim}) observations and (M, {self.act_dim}) "
+                             f"actions, got {obs.shape} and {actions.shape}")
+        if not (np.isfinite(obs).all() and np.isfinite(actions).all()):
+            raise ValueError("behaviour-cloning pairs contain non-finite values")
+        self.bc_obs = torch.as_tensor(obs, device=self.device)
+        self.bc_act = torch.as_tensor(actions, device=self.device)
+
     def update(self) -> dict[str, float]:
         """Train on the last rollout (see the module docstring); returns scalar statistics."""
         ro = self._rollout
         if ro is None:
             raise RuntimeError("AmpLearner.update() needs a rollout: call collect() first")
+        if self.cfg.bc_coef > 0 and self.bc_obs is None:
+            raise ValueError(f"AmpConfig.bc_coef is {self.cfg.bc_coef} but no behaviour-cloning pairs were given "
+                             f"(AmpLearner.set_bc_data)")
         cfg, dev = self.cfg, self.device
         T, E = ro.task_rewards.shape
         B = T * E
@@ -625,6 +651,13 @@ class AmpLearner:
                     mirror_loss = (dist.mean - self._mirror[1](self.actor(mirrored_n[mb]))).square().sum(-1).mean()
                     actor_loss = actor_loss + cfg.mirror_coef * mirror_loss
                     log("losses/mirror", mirror_loss)
+                if cfg.bc_coef > 0:  # stay near the cloned actions on the cloning pairs' states
+                    pick = torch.from_numpy(self.rng.integers(0, len(self.bc_obs), len(mb))).to(dev)
+                    with torch.no_grad():
+                        bc_in = self.obs_norm.normalize(self.bc_obs[pick]).float()
+                    bc_loss = (self.actor(bc_in) - self.bc_act[pick]).square().sum(-1).mean()
+                    actor_loss = actor_loss + cfg.bc_coef * bc_loss
+                    log("losses/bc", bc_loss)
                 if self.iteration >= cfg.actor_warmup_iters:
                     self._step(self.actor_opt, actor_loss, self.actor_params)
                 # Critic: MSE on (normalised) returns.

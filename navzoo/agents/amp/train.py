@@ -100,6 +100,10 @@ class TrainArgs:
     # the actor is not updated before this iteration (AmpConfig.actor_warmup_iters): a fresh critic learns the values
     # of an actor that starts from behaviour cloning (navzoo.agents.amp.bc) before the actor moves
     actor_warmup_iters: int = 0
+    # behaviour-cloning term on the actor (AmpConfig.bc_coef) and its pairs: an .npz with "obs" and "act" written by
+    # python -m navzoo.agents.amp.bc --data-out F (the observations must be this task's)
+    bc_coef: float = 0.0
+    bc_data: str = ""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -121,6 +125,8 @@ def run(args: TrainArgs) -> dict[str, Any]:
     if args.door_prob and not (args.stage == 3 and args.obstacles):
         raise ValueError(f"--door-prob {args.door_prob} needs --stage 3 --obstacles 1 (walls are stage-3 "
                          f"obstacles the policy must see), got --stage {args.stage} --obstacles {args.obstacles}")
+    if args.bc_coef > 0 and not args.bc_data:
+        raise ValueError(f"--bc-coef {args.bc_coef} needs --bc-data F.npz (python -m navzoo.agents.amp.bc --data-out F)")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     hidden = tuple(int(h) for h in args.hidden.split(","))
@@ -141,13 +147,18 @@ def run(args: TrainArgs) -> dict[str, Any]:
                        disc_weight_decay=args.disc_weight_decay, mirror_coef=args.mirror_coef,
                        init_log_std=args.init_log_std, keep_checkpoints=args.keep_checkpoints,
                        task_weight=args.task_weight, actor_lr=args.actor_lr,
-                       actor_warmup_iters=args.actor_warmup_iters)
+                       actor_warmup_iters=args.actor_warmup_iters, bc_coef=args.bc_coef)
     device = args.device if args.device != "cuda" or torch.cuda.is_available() else "cpu"
     (out / "train_args.json").write_text(json.dumps({**dataclasses.asdict(args), "task": dataclasses.asdict(task),
                                                      "learner": config.to_dict()}, indent=2, default=str))
     t0 = time.time()
     try:
         learner = AmpLearner(env, config, device=device)
+        if args.bc_data:
+            from navzoo.agents.amp.bc import load_data
+
+            pairs = load_data(args.bc_data)
+            learner.set_bc_data(pairs["obs"], pairs["act"])
         result = learner.train(args.total_steps, log_dir=out, ckpt_dir=out / "checkpoints", ckpt_every=args.ckpt_every,
                                verbose=True, time_limit_s=args.time_limit_s, reset_disc=bool(args.reset_disc),
                                any_num_envs=bool(args.any_num_envs),
