@@ -27,7 +27,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import time
 
@@ -39,10 +38,6 @@ from navzoo.agents.amp.stage0 import SPACING, sample_starts
 from navzoo.agents.amp.tracking import body_errors, rigid_bodies
 from navzoo.agents.amp.train import grounded_locomotion_reference
 from navzoo.agents.quat import quat_conj, quat_mul
-
-
-def _offset(state, off):
-    return dataclasses.replace(state, root_pos=np.asarray(state.root_pos) + off)
 
 
 def _local(pos: np.ndarray, quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -69,7 +64,7 @@ def probe(ref, clips, t, gain: float, sigma: float, lead: int, horizon: float = 
     fall = np.full(n, horizon)
     rl, rw, vs, vr = [], [], [], []
     try:
-        hum.set_state(_offset(ref.state_at(clips, t), off))
+        hum.set_state(ref.state_at(clips, t).translated(off))
         for k in range(steps):
             tgt = ref.state_at(clips, t + (k + lead) * hum.control_dt)
             a = targets_to_actions(tgt.sph, tgt.rev)
@@ -79,7 +74,7 @@ def probe(ref, clips, t, gain: float, sigma: float, lead: int, horizon: float = 
             hum.apply_targets(sph, rev)
             hum.step()
             s = hum.read_state()
-            now = _offset(ref.state_at(clips, t + (k + 1) * hum.control_dt), off)
+            now = ref.state_at(clips, t + (k + 1) * hum.control_dt).translated(off)
             newly = hum.fallen() & up
             fall[newly] = (k + 1) * hum.control_dt
             up &= ~newly

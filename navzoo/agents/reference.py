@@ -20,6 +20,7 @@ with ``globalScaling=0.25``, ``URDF_MAINTAIN_LINK_ORDER``) in navzoo's z-up worl
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -38,6 +39,10 @@ class ReferenceState:
     root_ang_vel: np.ndarray
     sph_vel: np.ndarray
     rev_vel: np.ndarray
+
+    def translated(self, offset: np.ndarray) -> ReferenceState:
+        """The same state(s) moved by ``offset`` ((..., 3), broadcast against ``root_pos``); nothing turns."""
+        return dataclasses.replace(self, root_pos=np.asarray(self.root_pos) + np.asarray(offset))
 
 
 @runtime_checkable

@@ -428,3 +428,16 @@ def test_playback_velocities_are_consistent_in_pybullet(lib, client):
         )
         assert np.abs(vel - fd).max() < 0.1 * np.abs(fd).max(), (vel, fd)
     p.removeBody(body, physicsClientId=client)
+
+
+def test_a_translated_reference_state_moves_and_keeps_everything_else():
+    from navzoo.agents.motion_lib import MotionLibrary
+
+    lib = MotionLibrary.load()
+    ref = lib.state_at(np.array([0, 1]), np.array([0.1, 0.2]))
+    moved = ref.translated(np.array([[1.0, -2.0, 0.5], [0.0, 0.0, 0.0]]))
+    np.testing.assert_allclose(np.asarray(moved.root_pos) - np.asarray(ref.root_pos), [[1.0, -2.0, 0.5], [0, 0, 0]])
+    for field in ("root_quat", "sph", "rev", "root_lin_vel", "root_ang_vel", "sph_vel", "rev_vel"):
+        assert getattr(moved, field) is getattr(ref, field)
+    np.testing.assert_allclose(np.asarray(ref.translated(np.array([0.0, 0.0, 1.0])).root_pos)[:, 2],
+                               np.asarray(ref.root_pos)[:, 2] + 1.0)  # one offset for the whole batch

@@ -32,7 +32,6 @@ learning (``navzoo train amp --bc-coef W --bc-data F.npz``, ``AmpConfig.bc_coef`
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import time
 from pathlib import Path
@@ -45,32 +44,24 @@ from navzoo import sim as nzsim
 from navzoo.agents.amp.features import policy_observation
 from navzoo.agents.amp.path_env import PathTaskConfig
 from navzoo.agents.amp.sim import PhysicsHumanoids, actions_to_targets, targets_to_actions
-from navzoo.agents.reference import ReferenceMotion, ReferenceState
+from navzoo.agents.amp.tracking import clip_end_motion
+from navzoo.agents.reference import ReferenceMotion
 
 #: Humanoids per PyBullet client in the oracle rollouts (40 m apart, like clip tracking).
 BATCH = 64
 SPACING = 40.0
-#: The clip's final root velocity is its mean over this window (s), for the waypoints after its end.
-END_WINDOW_S = 0.25
-
-
-def _shift(state: ReferenceState, offset: np.ndarray) -> ReferenceState:
-    return dataclasses.replace(state, root_pos=np.asarray(state.root_pos) + offset)
 
 
 def clip_waypoints(ref: ReferenceMotion, clips: np.ndarray, times: np.ndarray, n: int, dt: float) -> np.ndarray:
     """(B, n, 2) root positions of ``clips`` at ``times + dt * (1..n)``; after a clip's end the path goes on
-    at the clip's final root velocity (the mean over its last :data:`END_WINDOW_S`)."""
+    at the clip's final root velocity, as in clip tracking (:func:`~navzoo.agents.amp.tracking.clip_end_motion`)."""
     clips = np.asarray(clips, dtype=np.int64)
     b = len(clips)
     full = np.array([ref.duration(int(c)) for c in clips])
     ahead = np.asarray(times, dtype=np.float64)[:, None] + dt * np.arange(1, n + 1)[None, :]  # (B, n)
     inside = np.minimum(ahead, full[:, None])
     pos = np.asarray(ref.state_at(np.repeat(clips, n), inside.reshape(-1)).root_pos)[:, :2].reshape(b, n, 2)
-    w = np.minimum(END_WINDOW_S, full)
-    end = np.asarray(ref.state_at(clips, full).root_pos)[:, :2]
-    before = np.asarray(ref.state_at(clips, full - w).root_pos)[:, :2]
-    vel = (end - before) / np.maximum(w, 1e-9)[:, None]
+    end, vel = clip_end_motion(ref, clips, full)
     extra = end[:, None, :] + vel[:, None, :] * np.maximum(ahead - full[:, None], 0.0)[..., None]
     return np.where((ahead > full[:, None])[..., None], extra, pos)
 
@@ -104,7 +95,7 @@ def oracle_rollouts(ref: ReferenceMotion, starts: int, seconds: float = 1.5, lea
         client = nzsim.connect()
         try:
             bodies = PhysicsHumanoids(client, n, physics_hz=cfg.physics_hz, control_hz=hz, pd_mode=cfg.pd_mode)
-            bodies.set_state(_shift(ref.state_at(clips, t0), shift))
+            bodies.set_state(ref.state_at(clips, t0).translated(shift))
             up = np.ones(n, dtype=bool)
             for step in range(steps):
                 t = t0 + step / hz

@@ -20,7 +20,6 @@ Also: how long a standing body stays up with zero targets (``standing``).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import platform
@@ -39,7 +38,7 @@ from navzoo.agents.amp.features import (
     to_heading_frame,
 )
 from navzoo.agents.amp.sim import DEFAULT_GAINS, PDGains, PhysicsHumanoids
-from navzoo.agents.reference import ReferenceMotion, ReferenceState
+from navzoo.agents.reference import ReferenceMotion
 
 SPACING = 3.0  # m between the humanoids of one check (along y), so that they never touch
 
@@ -59,10 +58,6 @@ def sample_starts(
     dur = np.array([ref.duration(int(c)) for c in clips])
     t = rng.uniform(0.0, 1.0, n) * np.maximum(dur - margin, 0.0)
     return clips.astype(int), t
-
-
-def _offset(state: ReferenceState, off: np.ndarray) -> ReferenceState:
-    return dataclasses.replace(state, root_pos=np.asarray(state.root_pos) + off)
 
 
 def _humanoids(n: int, ground: str = "box", gain_scale: float = 1.0, **kw) -> tuple[int, PhysicsHumanoids]:
@@ -96,7 +91,7 @@ def feature_check(ref: ReferenceMotion, clips: np.ndarray, t: np.ndarray, **kw) 
     off = np.c_[np.zeros(n), SPACING * np.arange(n), np.zeros(n)]
     cid, hum = _humanoids(n, **kw)
     try:
-        hum.set_state(_offset(state, off))
+        hum.set_state(state.translated(off))
         f_sim = amp_features(hum.read_state())
     finally:
         sim.disconnect(cid)
@@ -136,7 +131,7 @@ def tracking_check(
     max_speed = 0.0
     max_pen = 0.0
     try:
-        hum.set_state(_offset(ref.state_at(clips, t), off))
+        hum.set_state(ref.state_at(clips, t).translated(off))
         for k in range(steps):
             tk = t + (k + 1) * hum.control_dt
             target = ref.state_at(clips, tk)
@@ -147,7 +142,7 @@ def tracking_check(
             hum.step()
             s = hum.read_state()
             if k < hum.control_hz:
-                rd = reference_state_dict(_offset(target, off))
+                rd = reference_state_dict(target.translated(off))
                 errs.append(np.linalg.norm(s["body_pos"] - rd["body_pos"], axis=-1).mean(axis=-1))
                 loc_sim = to_heading_frame(s["root_quat"], s["body_pos"] - s["root_pos"][:, None])
                 loc_ref = to_heading_frame(rd["root_quat"], rd["body_pos"] - rd["root_pos"][:, None])
@@ -208,7 +203,7 @@ def throughput(ref: ReferenceMotion, sizes: tuple[int, ...] = (1, 4, 16), second
         off = np.c_[np.zeros(n), SPACING * np.arange(n), np.zeros(n)]
         cid, hum = _humanoids(n, **kw)
         try:
-            hum.set_state(_offset(ref.state_at(clips, t), off))
+            hum.set_state(ref.state_at(clips, t).translated(off))
             k = 0
             sim_time = 0.0
             t0 = time.perf_counter()
@@ -225,7 +220,7 @@ def throughput(ref: ReferenceMotion, sizes: tuple[int, ...] = (1, 4, 16), second
                 if fl.any():
                     idx = np.flatnonzero(fl)
                     t[idx] = tk[idx]
-                    hum.set_state(_offset(ref.state_at(clips[idx], t[idx]), off[idx]), idx)
+                    hum.set_state(ref.state_at(clips[idx], t[idx]).translated(off[idx]), idx)
                 k += 1
             wall = time.perf_counter() - t0
         finally:

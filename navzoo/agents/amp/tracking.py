@@ -246,25 +246,27 @@ def _load_policy_dir(policy_dir: str | Path, device: str = "cpu") -> Any:
 # --------------------------------------------------------------------------------------------------
 
 
-def _shift(ref: ReferenceState, d: np.ndarray) -> ReferenceState:
-    """Translate batched reference states by ``d`` (..., 3)."""
-    return ReferenceState(np.asarray(ref.root_pos) + d, ref.root_quat, ref.sph, ref.rev, ref.root_lin_vel,
-                          ref.root_ang_vel, ref.sph_vel, ref.rev_vel)
-
 
 #: ``path_end="extend"``: the clip's final root velocity is its mean over this last stretch (s).
 END_VELOCITY_WINDOW_S = 0.25
 PATH_ENDS = ("hold", "extend")
 
 
+def clip_end_motion(lib: Any, clip: np.ndarray, full: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each clip's last root position on the ground (n, 2) and its final root velocity (n, 2), the mean over its
+    last :data:`END_VELOCITY_WINDOW_S`: where and how a target path goes on after the clip ends."""
+    w = np.minimum(END_VELOCITY_WINDOW_S, full)
+    end = np.asarray(lib.state_at(clip, full).root_pos)[:, :2]
+    before = np.asarray(lib.state_at(clip, full - w).root_pos)[:, :2]
+    return end, (end - before) / np.maximum(w, 1e-9)[:, None]
+
+
 def _extend_paths(paths: np.ndarray, lib: MotionLibrary, clip: np.ndarray, full: np.ndarray, shift: np.ndarray,
                   times: np.ndarray) -> np.ndarray:
     """Target paths (n, L, 2) whose points after each clip's end continue at the clip's final root velocity
-    (its mean over the last :data:`END_VELOCITY_WINDOW_S`) instead of holding the last point."""
-    w = np.minimum(END_VELOCITY_WINDOW_S, full)
-    end = np.asarray(lib.state_at(clip, full).root_pos)[:, :2] + shift
-    before = np.asarray(lib.state_at(clip, full - w).root_pos)[:, :2] + shift
-    vel = (end - before) / np.maximum(w, 1e-9)[:, None]
+    (:func:`clip_end_motion`) instead of holding the last point."""
+    end, vel = clip_end_motion(lib, clip, full)
+    end = end + shift
     after = times[None, :] > full[:, None]  # (n, L)
     extra = end[:, None, :] + vel[:, None, :] * (times[None, :] - full[:, None])[..., None]
     return np.where(after[..., None], extra, paths)
@@ -309,14 +311,14 @@ def _track_batch(
     ref = lib.state_at(np.repeat(clip, path_len), times.reshape(-1))
     first = np.asarray(ref.root_pos).reshape(n, path_len, 3)[:, 0]
     shift = np.concatenate([origins - first[:, :2], np.zeros((n, 1))], axis=1)
-    ref = _shift(ref, np.repeat(shift, path_len, axis=0))
+    ref = ref.translated(np.repeat(shift, path_len, axis=0))
     paths = np.asarray(ref.root_pos).reshape(n, path_len, 3)[..., :2]
     if path_end == "extend":
         paths = _extend_paths(paths, lib, clip, full, shift[:, :2], np.arange(path_len) * dt)
     ref_pos, ref_quat = rigid_bodies(ref)
     ref_pos = ref_pos.reshape(n, path_len, N_BODIES, 3)
     ref_quat = ref_quat.reshape(n, path_len, N_BODIES, 4)
-    start = _shift(lib.state_at(clip, np.zeros(n)), shift)  # first frames, velocities included
+    start = lib.state_at(clip, np.zeros(n)).translated(shift)  # first frames, velocities included
 
     pos_err = np.full((n, max_steps), np.nan)
     rot_err = np.full((n, max_steps), np.nan)
