@@ -44,7 +44,7 @@ from navzoo.agents.amp.features import (
     reference_state_dict,
     yaw_quat,
 )
-from navzoo.agents.amp.sim import ACTION_DIM, PhysicsHumanoids, actions_to_targets
+from navzoo.agents.amp.sim import ACTION_DIM, GROUND_HALF_SIZE, PhysicsHumanoids, actions_to_targets
 from navzoo.agents.reference import ReferenceMotion, ReferenceState
 from navzoo.agents.sfm import SocialForceParams, social_force_velocities
 from navzoo.agents.target_paths import resample, sfm_rollout, waypoints_pref_velocity
@@ -157,13 +157,17 @@ class AmpPathEnv:
         self.episode_steps = int(round(self.cfg.episode_seconds * self.cfg.control_hz))
         self._wp_stride = int(round(self.cfg.waypoint_dt * self.cfg.control_hz))
         self._path_len = self.episode_steps + self._wp_stride * self.cfg.n_waypoints + 1
-        self.client = nzsim.connect()
-        self.bodies = PhysicsHumanoids(self.client, self.num_envs, physics_hz=self.cfg.physics_hz,
-                                       control_hz=self.cfg.control_hz, pd_mode=self.cfg.pd_mode)
         k = np.arange(self.num_envs)
         patch = k // 2 if self.cfg.pair_patches else k
         n_patches = int(patch.max()) + 1
         cols = int(np.ceil(np.sqrt(n_patches)))
+        # The patches sit on a grid from the origin towards +x, +y; the box ground is centred on the origin and must
+        # reach past the last patch (with 240 envs in one process the grid is 600 m wide, past the default 500 m).
+        ground = max(GROUND_HALF_SIZE, (cols - 1) * self.cfg.spacing + self.cfg.spacing)
+        self.client = nzsim.connect()
+        self.bodies = PhysicsHumanoids(self.client, self.num_envs, physics_hz=self.cfg.physics_hz,
+                                       control_hz=self.cfg.control_hz, pd_mode=self.cfg.pd_mode,
+                                       ground_half_size=ground)
         self.patch = patch
         self.origins = np.stack([(patch % cols) * self.cfg.spacing, (patch // cols) * self.cfg.spacing],
                                 axis=1).astype(float)

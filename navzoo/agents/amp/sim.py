@@ -229,6 +229,8 @@ class PhysicsHumanoids:
             difference: stable PD is contact-blind and makes loaded ankles nearly limp.
         motor_gain: position gain of ``"motor"`` mode (PyBullet's ``positionGain``, 0..1: the fraction of
             the position error the motor tries to remove in one physics step).
+        ground_half_size: half side (m) of the created box ground, centred on the origin; bodies placed beyond it
+            have no floor.
 
     Bodies are parked standing at ``(3 i, -1000, h)`` until :meth:`set_state` places them.
     """
@@ -249,6 +251,7 @@ class PhysicsHumanoids:
         fall_height_ratio: float = 0.5,
         pd_mode: str = "stable",
         motor_gain: float = 1.0,
+        ground_half_size: float = GROUND_HALF_SIZE,
     ) -> None:
         if n < 1:
             raise ValueError(f"need at least one humanoid, got n={n}")
@@ -288,7 +291,7 @@ class PhysicsHumanoids:
         self._own_ground = bool(ground)
         if ground:
             col = p.createCollisionShape(
-                p.GEOM_BOX, halfExtents=[GROUND_HALF_SIZE, GROUND_HALF_SIZE, 0.5], physicsClientId=client
+                p.GEOM_BOX, halfExtents=[ground_half_size, ground_half_size, 0.5], physicsClientId=client
             )
             self.ground_id = p.createMultiBody(0.0, col, -1, [0, 0, -0.5], physicsClientId=client)
             p.setCollisionFilterGroupMask(self.ground_id, -1, GROUP_STATIC, MASK_ALL, physicsClientId=client)
