@@ -90,12 +90,12 @@ def oracle_rollouts(ref: ReferenceMotion, starts: int, seconds: float = 1.5, lea
         cols = int(np.ceil(np.sqrt(n)))
         k = np.arange(n)
         origin = np.stack([(k % cols) * SPACING, (k // cols) * SPACING, np.zeros(n)], axis=1)
-        first = np.asarray(ref.state_at(clips, t0).root_pos)
-        shift = origin - np.c_[first[:, :2], np.zeros(n)]
+        start = ref.state_at(clips, t0)
+        shift = origin - np.c_[np.asarray(start.root_pos)[:, :2], np.zeros(n)]
         client = nzsim.connect()
         try:
             bodies = PhysicsHumanoids(client, n, physics_hz=cfg.physics_hz, control_hz=hz, pd_mode=cfg.pd_mode)
-            bodies.set_state(ref.state_at(clips, t0).translated(shift))
+            bodies.set_state(start.translated(shift))
             up = np.ones(n, dtype=bool)
             for step in range(steps):
                 t = t0 + step / hz
