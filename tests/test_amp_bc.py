@@ -134,3 +134,34 @@ def test_train_refuses_a_cloning_weight_without_pairs(tmp_path):
 
     with pytest.raises(ValueError, match="needs --bc-data"):
         run(TrainArgs(out=str(tmp_path), bc_coef=1.0))
+
+
+def test_oracle_rollouts_are_the_same_for_any_number_of_workers(ref, monkeypatch):
+    import navzoo.agents.amp.bc as bc
+
+    monkeypatch.setattr(bc, "BATCH", 3)  # 7 starts -> batches of 3, 3 and 1
+    one = oracle_rollouts(ref, 7, seconds=0.2, seed=4, workers=1)
+    two = oracle_rollouts(ref, 7, seconds=0.2, seed=4, workers=2)
+    assert one["up_s"].shape == (7,)
+    for k in ("obs", "act", "clip", "time", "up_s"):
+        np.testing.assert_array_equal(one[k], two[k])
+    other = oracle_rollouts(ref, 7, seconds=0.2, seed=5, workers=1)
+    assert not np.array_equal(one["obs"], other["obs"])
+    with pytest.raises(ValueError, match="workers >= 1"):
+        oracle_rollouts(ref, 2, seconds=0.1, workers=0)
+
+
+def test_cli_pairs_only_writes_just_the_pairs(tmp_path, capsys):
+    from navzoo.agents.amp.bc import load_data, main
+
+    with pytest.raises(SystemExit):
+        main(["--pairs-only", "--starts", "2"])  # no --data-out
+    assert "--pairs-only needs --data-out" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["--starts", "2"])  # neither --out nor --pairs-only
+    assert "--out DIR is required" in capsys.readouterr().err
+    f = tmp_path / "pairs.npz"
+    assert main(["--pairs-only", "--data-out", str(f), "--starts", "3", "--seconds", "0.2", "--workers", "2"]) == 0
+    data = load_data(f)
+    assert data["obs"].shape[0] == data["act"].shape[0] > 3
+    assert list(tmp_path.iterdir()) == [f]  # no training run written

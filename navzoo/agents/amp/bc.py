@@ -26,7 +26,11 @@ CLI::
         --hidden 1024,512 --amp-velocity-span 4 --disc-lr 2e-5 --disc-grad-penalty 50 --disc-weight-decay 5e-4
 
 With ``--data-out F.npz`` the cloning pairs are kept too, for the actor's cloning term during reinforcement
-learning (``navzoo train amp --bc-coef W --bc-data F.npz``, ``AmpConfig.bc_coef``).
+learning (``navzoo train amp --bc-coef W --bc-data F.npz``, ``AmpConfig.bc_coef``); ``--pairs-only`` writes only
+them, and ``--workers N`` spreads the rollouts over N processes (the same pairs for any N: each batch of
+:data:`BATCH` bodies draws its own noise stream from ``--seed``)::
+
+    python -m navzoo.agents.amp.bc --pairs-only --data-out /tmp/bc_pairs.npz --workers 16 --amp-velocity-span 4
 """
 
 from __future__ import annotations
@@ -66,59 +70,77 @@ def clip_waypoints(ref: ReferenceMotion, clips: np.ndarray, times: np.ndarray, n
     return np.where((ahead > full[:, None])[..., None], extra, pos)
 
 
+def _rollout_batch(ref: ReferenceMotion, clips: np.ndarray, t0: np.ndarray, dur: np.ndarray, steps: int, lead: int,
+                   noise: float, seed: np.random.SeedSequence, cfg: PathTaskConfig) -> dict[str, np.ndarray]:
+    """One PyBullet client of oracle rollouts (``len(clips)`` bodies): its pairs and how long each body stayed up."""
+    rng = np.random.default_rng(seed)
+    hz = cfg.control_hz
+    n = len(clips)
+    cols = int(np.ceil(np.sqrt(n)))
+    k = np.arange(n)
+    origin = np.stack([(k % cols) * SPACING, (k // cols) * SPACING, np.zeros(n)], axis=1)
+    start = ref.state_at(clips, t0)
+    shift = origin - np.c_[np.asarray(start.root_pos)[:, :2], np.zeros(n)]
+    obs, act, clip_of, time_of = [], [], [], []
+    up_s = np.zeros(n)
+    client = nzsim.connect()
+    try:
+        bodies = PhysicsHumanoids(client, n, physics_hz=cfg.physics_hz, control_hz=hz, pd_mode=cfg.pd_mode)
+        bodies.set_state(start.translated(shift))
+        up = np.ones(n, dtype=bool)
+        for step in range(steps):
+            t = t0 + step / hz
+            state = bodies.read_state()
+            wp = clip_waypoints(ref, clips, t, cfg.n_waypoints, cfg.waypoint_dt) + shift[:, None, :2]
+            o = policy_observation(state, wp)
+            tgt = ref.state_at(clips, np.minimum(t + lead / hz, dur))
+            a = np.clip(targets_to_actions(tgt.sph, tgt.rev), -1.0, 1.0)
+            obs.append(o[up])
+            act.append(a[up].astype(np.float32))
+            clip_of.append(clips[up])
+            time_of.append(t[up])
+            executed = np.clip(a + noise * rng.standard_normal(a.shape), -1.0, 1.0) if noise > 0 else a
+            bodies.apply_targets(*actions_to_targets(executed))
+            bodies.step()
+            up &= ~bodies.fallen()
+            up_s[up] = (step + 1) / hz
+            if not up.any():
+                break
+    finally:
+        nzsim.disconnect(client)
+    return {"obs": np.concatenate(obs), "act": np.concatenate(act), "clip": np.concatenate(clip_of),
+            "time": np.concatenate(time_of), "up_s": up_s}
+
+
 def oracle_rollouts(ref: ReferenceMotion, starts: int, seconds: float = 1.5, lead: int = 2, noise: float = 0.055,
-                    seed: int = 0, config: PathTaskConfig | None = None) -> dict[str, np.ndarray]:
+                    seed: int = 0, config: PathTaskConfig | None = None, workers: int = 1) -> dict[str, np.ndarray]:
     """Observations (M, obs_dim) and clean oracle actions (M, 28) of ``starts`` rollouts (see the module doc),
-    plus ``clip`` / ``time`` (M,) of each sample and ``up_s`` (starts,): how long each body stayed up."""
-    if starts < 1 or not seconds > 0 or lead < 1 or noise < 0:
-        raise ValueError(f"need starts >= 1, seconds > 0, lead >= 1, noise >= 0; got {starts}, {seconds}, {lead}, "
-                         f"{noise}")
+    plus ``clip`` / ``time`` (M,) of each sample and ``up_s`` (starts,): how long each body stayed up.
+
+    The rollouts run in batches of :data:`BATCH` bodies, each batch with its own noise stream spawned from
+    ``seed``, so the pairs are the same for any number of ``workers`` (processes; 1 runs them in this one)."""
+    if starts < 1 or not seconds > 0 or lead < 1 or noise < 0 or workers < 1:
+        raise ValueError(f"need starts >= 1, seconds > 0, lead >= 1, noise >= 0, workers >= 1; got {starts}, "
+                         f"{seconds}, {lead}, {noise}, {workers}")
     cfg = config or PathTaskConfig()
     rng = np.random.default_rng(seed)
     n_clips = len(ref.clip_names())
     clips_all = rng.integers(0, n_clips, starts)
     dur = np.array([ref.duration(int(c)) for c in clips_all])
     t_all = rng.uniform(0.0, 1.0, starts) * np.maximum(dur - 0.2, 0.0)
-    obs, act, clip_of, time_of = [], [], [], []
-    up_s = np.zeros(starts)
-    hz = cfg.control_hz
-    steps = int(round(seconds * hz))
-    for b0 in range(0, starts, BATCH):
-        sel = np.arange(b0, min(starts, b0 + BATCH))
-        n = len(sel)
-        clips, t0 = clips_all[sel], t_all[sel]
-        cols = int(np.ceil(np.sqrt(n)))
-        k = np.arange(n)
-        origin = np.stack([(k % cols) * SPACING, (k // cols) * SPACING, np.zeros(n)], axis=1)
-        start = ref.state_at(clips, t0)
-        shift = origin - np.c_[np.asarray(start.root_pos)[:, :2], np.zeros(n)]
-        client = nzsim.connect()
-        try:
-            bodies = PhysicsHumanoids(client, n, physics_hz=cfg.physics_hz, control_hz=hz, pd_mode=cfg.pd_mode)
-            bodies.set_state(start.translated(shift))
-            up = np.ones(n, dtype=bool)
-            for step in range(steps):
-                t = t0 + step / hz
-                state = bodies.read_state()
-                wp = clip_waypoints(ref, clips, t, cfg.n_waypoints, cfg.waypoint_dt) + shift[:, None, :2]
-                o = policy_observation(state, wp)
-                tgt = ref.state_at(clips, np.minimum(t + lead / hz, dur[sel]))
-                a = np.clip(targets_to_actions(tgt.sph, tgt.rev), -1.0, 1.0)
-                obs.append(o[up])
-                act.append(a[up].astype(np.float32))
-                clip_of.append(clips[up])
-                time_of.append(t[up])
-                executed = np.clip(a + noise * rng.standard_normal(a.shape), -1.0, 1.0) if noise > 0 else a
-                bodies.apply_targets(*actions_to_targets(executed))
-                bodies.step()
-                up &= ~bodies.fallen()
-                up_s[sel[up]] = (step + 1) / hz
-                if not up.any():
-                    break
-        finally:
-            nzsim.disconnect(client)
-    return {"obs": np.concatenate(obs), "act": np.concatenate(act), "clip": np.concatenate(clip_of),
-            "time": np.concatenate(time_of), "up_s": up_s}
+    steps = int(round(seconds * cfg.control_hz))
+    batches = [np.arange(b0, min(starts, b0 + BATCH)) for b0 in range(0, starts, BATCH)]
+    seeds = np.random.SeedSequence([seed, 1]).spawn(len(batches))
+    jobs = [(clips_all[sel], t_all[sel], dur[sel], steps, lead, noise, sq, cfg) for sel, sq in zip(batches, seeds, strict=True)]
+    if workers == 1 or len(jobs) == 1:
+        parts = [_rollout_batch(ref, *job) for job in jobs]
+    else:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=mp.get_context("spawn")) as pool:
+            parts = list(pool.map(_rollout_batch, [ref] * len(jobs), *zip(*jobs, strict=True)))
+    return {k: np.concatenate([p[k] for p in parts]) for k in ("obs", "act", "clip", "time", "up_s")}
 
 
 def save_data(path: str | Path, data: dict[str, np.ndarray]) -> Path:
@@ -216,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
     from navzoo.agents.amp.train import grounded_locomotion_reference
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", required=True)
+    ap.add_argument("--out", default=None, help="the training run to write (not needed with --pairs-only)")
     ap.add_argument("--starts", type=int, default=4096)
     ap.add_argument("--seconds", type=float, default=1.5)
     ap.add_argument("--lead", type=int, default=2, help="oracle targets: the clip's pose this many control steps ahead")
@@ -233,19 +255,27 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--minibatch-size", type=int, default=1920)
     ap.add_argument("--data-out", default=None, help="also write the cloning pairs to this .npz (for --bc-data of "
                     "navzoo train amp)")
+    ap.add_argument("--pairs-only", action="store_true", help="only write the cloning pairs (--data-out), no actor")
+    ap.add_argument("--workers", type=int, default=1, help="processes for the oracle rollouts (same pairs for any)")
     a = ap.parse_args(argv)
+    if a.pairs_only and not a.data_out:
+        ap.error("--pairs-only needs --data-out F.npz")
+    if not a.pairs_only and not a.out:
+        ap.error("--out DIR is required (or --pairs-only with --data-out)")
     hidden = tuple(int(h) for h in a.hidden.split(","))
     t0 = time.time()
     ref = grounded_locomotion_reference()
     task = PathTaskConfig(stage=a.stage, amp_velocity_span=a.amp_velocity_span)
     try:
-        data = oracle_rollouts(ref, a.starts, a.seconds, a.lead, a.noise, a.seed, task)
+        data = oracle_rollouts(ref, a.starts, a.seconds, a.lead, a.noise, a.seed, task, workers=a.workers)
     except ValueError as e:
         ap.exit(2, f"error: {e}\n")
     print(f"{len(data['obs'])} samples from {a.starts} starts; bodies up a median {np.median(data['up_s']):.2f} s "
           f"({time.time() - t0:.0f} s)", flush=True)
     if a.data_out:
         print(f"cloning pairs -> {save_data(a.data_out, data)}", flush=True)
+    if a.pairs_only:
+        return 0
     actor, norm, fit = fit_actor(data["obs"], data["act"], hidden, a.epochs, a.lr, seed=a.seed)
     learner_kw = {"actor_hidden": hidden, "critic_hidden": hidden, "disc_hidden": hidden,
                   "minibatch_size": a.minibatch_size, "disc_lr": a.disc_lr, "disc_grad_penalty": a.disc_grad_penalty,
