@@ -1,5 +1,10 @@
 """Clip tracking (the paper's protocol) of AMP training checkpoints, to compare runs per sample.
 
+With ``--protocol tracking_full`` the same clip tracking without ending a clip at its failure: every clip is
+tracked for its whole duration, so the error means of controllers that fail early and late cover the same
+seconds (the paper's protocol ends each clip at its failure, and then a controller that fails after one second
+is scored on its first second only).
+
 Or, with ``--protocol path3``, the training task's closed-loop check on stage-3 paths (curvy, with stops;
 ``navzoo.agents.amp.evaluate``: falls, path error; 32 patches x 60 s, seed 0; no obstacles for a policy
 without obstacle rays, boxes and paired walkers for one with them, so compare like with like).
@@ -73,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("sources", nargs="+")
     ap.add_argument("--out", required=True, help="JSON lines, appended; sources already there are skipped")
-    ap.add_argument("--protocol", choices=("tracking", "path3"), default="tracking")
+    ap.add_argument("--protocol", choices=("tracking", "tracking_full", "path3"), default="tracking")
     args = ap.parse_args(argv)
     out = Path(args.out)
     done = set()
@@ -90,8 +95,8 @@ def main(argv: list[str] | None = None) -> int:
             if (source, config.get("trained_iterations")) in done:
                 print(f"{source} (iteration {config.get('trained_iterations')}): already in {out}", file=sys.stderr)
                 continue
-            if args.protocol == "tracking":
-                result = track_clips(policy)
+            if args.protocol in ("tracking", "tracking_full"):
+                result = track_clips(policy, stop_on_failure=args.protocol == "tracking")
                 shown = ("clip_success_rate", "mean_pos_error_m", "max_pos_error_m", "mean_rot_error_rad")
             else:
                 result = evaluate(str(policy), envs=32, seconds=60.0, stage=3, seed=0)

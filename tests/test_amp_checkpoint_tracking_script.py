@@ -23,7 +23,7 @@ def script():
 
 def test_sources_are_exported_tracked_and_skipped_when_done(script, tmp_path, monkeypatch):
     calls = []
-    monkeypatch.setattr(script, "track_clips", lambda policy: calls.append(Path(policy)) or {"clip_success_rate": 0.5,
+    monkeypatch.setattr(script, "track_clips", lambda policy, **kw: calls.append(Path(policy)) or {"clip_success_rate": 0.5,
                         "mean_pos_error_m": 0.2, "max_pos_error_m": 0.3, "mean_rot_error_rad": 0.4})
     policy = ROOT / "policies" / "amp_pedestrian"
     out = tmp_path / "rows.jsonl"
@@ -35,7 +35,7 @@ def test_sources_are_exported_tracked_and_skipped_when_done(script, tmp_path, mo
 
 
 def test_the_path_task_protocol_has_its_own_rows(script, tmp_path, monkeypatch):
-    monkeypatch.setattr(script, "track_clips", lambda policy: {"clip_success_rate": 0.5, "mean_pos_error_m": 0.2,
+    monkeypatch.setattr(script, "track_clips", lambda policy, **kw: {"clip_success_rate": 0.5, "mean_pos_error_m": 0.2,
                                                                "max_pos_error_m": 0.3, "mean_rot_error_rad": 0.4})
     calls = []
     monkeypatch.setattr(script, "evaluate", lambda policy, **kw: calls.append(kw) or {
@@ -48,6 +48,19 @@ def test_the_path_task_protocol_has_its_own_rows(script, tmp_path, monkeypatch):
     rows = [json.loads(line) for line in out.read_text().splitlines()]
     assert [r["protocol"] for r in rows] == ["tracking", "path3"] and rows[1]["falls"] == 1
     assert calls == [{"envs": 32, "seconds": 60.0, "stage": 3, "seed": 0}]
+
+
+def test_full_clip_tracking_does_not_stop_at_failures_and_has_its_own_rows(script, tmp_path, monkeypatch):
+    seen = []
+    monkeypatch.setattr(script, "track_clips", lambda policy, **kw: seen.append(kw) or {
+        "clip_success_rate": 0.5, "mean_pos_error_m": 0.2, "max_pos_error_m": 0.3, "mean_rot_error_rad": 0.4})
+    policy = str(ROOT / "policies" / "amp_pedestrian")
+    out = tmp_path / "rows.jsonl"
+    assert script.main([policy, "--out", str(out)]) == 0
+    assert script.main([policy, "--out", str(out), "--protocol", "tracking_full"]) == 0  # not skipped
+    rows = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [r["protocol"] for r in rows] == ["tracking", "tracking_full"]
+    assert seen == [{"stop_on_failure": True}, {"stop_on_failure": False}]
 
 
 def test_a_training_folder_is_exported_from_its_parts(script, tmp_path):
@@ -70,7 +83,7 @@ def test_bad_sources_are_named(script, tmp_path):
 
 def test_a_folder_with_a_newer_checkpoint_is_tracked_again(script, tmp_path, monkeypatch):
     """A training folder's row is per checkpoint: after another run the same folder is a new source."""
-    monkeypatch.setattr(script, "track_clips", lambda policy: {"clip_success_rate": 0.5, "mean_pos_error_m": 0.2,
+    monkeypatch.setattr(script, "track_clips", lambda policy, **kw: {"clip_success_rate": 0.5, "mean_pos_error_m": 0.2,
                                                                "max_pos_error_m": 0.3, "mean_rot_error_rad": 0.4})
     policy = str(ROOT / "policies" / "amp_pedestrian")
     out = tmp_path / "rows.jsonl"

@@ -12,10 +12,12 @@ from navzoo import sim as nzsim
 from navzoo.agents.amp.sim import PhysicsHumanoids
 from navzoo.agents.amp.tracking import (
     DEFAULT_POLICY_DIR,
+    ROOT_OFFSET_KEYS,
     ROT_PART_KEYS,
     main,
     rigid_bodies,
     rigid_body_errors,
+    root_offsets,
     rotation_parts,
     track_clips,
 )
@@ -63,6 +65,27 @@ def test_error_of_a_reference_against_itself_and_moved_copies(library):
     np.testing.assert_allclose(rigid_body_errors(flipped, ref)[1], 0.0, atol=1e-7)
     with pytest.raises(ValueError, match="batch"):
         rigid_body_errors(library.state_at(np.array([0]), np.array([0.0])), ref)
+
+
+def test_root_offsets_tell_lag_veer_and_crouch_apart(library):
+    clips = np.array([library.clip_names().index(c) for c in CLIPS])
+    ref = library.state_at(clips, np.full(3, 0.5))
+    pos, quat = np.asarray(ref.root_pos), np.asarray(ref.root_quat)
+    h = heading(quat)
+    fwd = np.stack([np.cos(h), np.sin(h), np.zeros(3)], axis=1)
+    side = np.stack([-np.sin(h), np.cos(h), np.zeros(3)], axis=1)
+    for value in root_offsets(pos, pos, quat):
+        np.testing.assert_allclose(value, 0.0, atol=1e-12)
+    moved = pos - 0.3 * fwd + 0.2 * side - np.array([0.0, 0.0, 0.05])  # behind, to the left, lower
+    along, across, height = root_offsets(moved, pos, quat)
+    np.testing.assert_allclose(along, -0.3, atol=1e-9)
+    np.testing.assert_allclose(across, 0.2, atol=1e-9)
+    np.testing.assert_allclose(height, -0.05, atol=1e-9)
+    np.testing.assert_allclose(root_offsets(pos - 0.2 * side, pos, quat)[1], 0.2, atol=1e-9)  # either side
+    # The heading frame is the walking direction: a walking clip 0.2 s later is ahead of itself, not beside it.
+    later = library.state_at(clips, np.full(3, 0.7))
+    along, across, _ = root_offsets(np.asarray(later.root_pos), pos, quat)
+    assert (along > 0.1).all() and (across < 0.5 * along).all()
 
 
 def test_rotation_parts_tell_heading_tilt_and_pose_apart(library):
@@ -172,6 +195,10 @@ def test_short_tracking_run(short_run):
     for key in ROT_PART_KEYS:  # where the rotation error comes from: per clip and overall
         assert 0.0 <= r[key] <= math.pi and all(0.0 <= c[key] <= math.pi for c in r["per_clip"])
         assert r[key] == pytest.approx(np.mean([c[key] for c in r["per_clip"]]))
+    for key in ROOT_OFFSET_KEYS:  # where the root is against the clip's: per clip and overall
+        assert r[key] == pytest.approx(np.mean([c[key] for c in r["per_clip"]]))
+        assert all(abs(c[key]) < c["max_pos_error_m"] + 0.5 for c in r["per_clip"])
+    assert all(c["mean_root_cross_error_m"] >= 0.0 for c in r["per_clip"])
     by_body = r["mean_rot_error_by_body_rad"]
     assert list(by_body)[:3] == ["root", "chest", "neck"] and len(by_body) == 15
     assert np.mean(list(by_body.values())) == pytest.approx(r["mean_rot_error_rad"])

@@ -99,6 +99,9 @@ N_BODIES = 15
 StateLike = ReferenceState | dict[str, np.ndarray]
 #: Per-clip and summary keys of :func:`rotation_parts`' three errors.
 ROT_PART_KEYS = ("mean_root_heading_error_rad", "mean_root_tilt_error_rad", "mean_pose_rot_error_rad")
+#: Where the root is against the clip's root (:func:`root_offsets`): along the clip's heading (signed, < 0 behind),
+#: across it (unsigned), and in height (signed, < 0 lower).
+ROOT_OFFSET_KEYS = ("mean_root_along_error_m", "mean_root_cross_error_m", "mean_root_height_error_m")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -164,6 +167,18 @@ def rotation_parts(quat_a: np.ndarray, quat_b: np.ndarray) -> tuple[np.ndarray, 
     loc_b = quat_mul(np.broadcast_to(quat_conj(qb[..., :1, :]), qb[..., 1:, :].shape), qb[..., 1:, :])
     pose = quat_angle(quat_mul(quat_conj(loc_a), loc_b)).mean(axis=-1)
     return yaw, tilt, pose
+
+
+def root_offsets(root_pos: np.ndarray, ref_root_pos: np.ndarray, ref_root_quat: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The root's offset from the reference root in the reference's heading frame: (along (B,), signed, > 0
+    ahead of the reference; across (B,), unsigned; height (B,), signed, > 0 above it). Tells a controller that
+    lags or runs ahead of the clip (along), one that veers (across) and one that crouches (height) apart,
+    where the position error only gives their sum over the bodies."""
+    e = np.asarray(root_pos, dtype=np.float64) - np.asarray(ref_root_pos, dtype=np.float64)
+    yaw = quat_heading(np.asarray(ref_root_quat, dtype=np.float64))
+    c, s = np.cos(yaw), np.sin(yaw)
+    return e[..., 0] * c + e[..., 1] * s, np.abs(-e[..., 0] * s + e[..., 1] * c), e[..., 2]
 
 
 def rigid_body_errors(state: StateLike, reference: StateLike) -> tuple[np.ndarray, np.ndarray]:
@@ -315,6 +330,7 @@ def _track_batch(
     paths = np.asarray(ref.root_pos).reshape(n, path_len, 3)[..., :2]
     if path_end == "extend":
         paths = _extend_paths(paths, lib, clip, full, shift[:, :2], np.arange(path_len) * dt)
+    ref_root = (np.asarray(ref.root_pos).reshape(n, path_len, 3), np.asarray(ref.root_quat).reshape(n, path_len, 4))
     ref_pos, ref_quat = rigid_bodies(ref)
     ref_pos = ref_pos.reshape(n, path_len, N_BODIES, 3)
     ref_quat = ref_quat.reshape(n, path_len, N_BODIES, 4)
@@ -324,6 +340,7 @@ def _track_batch(
     rot_err = np.full((n, max_steps), np.nan)
     rot_body = np.full((n, max_steps, N_BODIES), np.nan)  # per-body geodesic errors
     rot_parts = np.full((n, max_steps, 3), np.nan)  # root heading, root tilt, pose (rotation_parts)
+    root_off = np.full((n, max_steps, 3), np.nan)  # along, across, height (root_offsets)
     fail_step = np.full(n, -1)
     fall_step = np.full(n, -1)
     tracked = np.zeros(n, dtype=int)
@@ -354,6 +371,8 @@ def _track_batch(
             rot_err[active, step - 1] = rb[active].mean(axis=-1)
             rot_body[active, step - 1] = rb[active]
             rot_parts[active, step - 1] = np.stack(rotation_parts(sim_quat, ref_quat[:, step]), axis=-1)[active]
+            off = root_offsets(state["root_pos"], ref_root[0][:, step], ref_root[1][:, step])
+            root_off[active, step - 1] = np.stack(off, axis=-1)[active]
             tracked[active] = step
             fallen = bodies.fallen()
             fall_step[active & fallen & (fall_step < 0)] = step
@@ -380,6 +399,7 @@ def _track_batch(
             "max_rot_error_rad": float(np.max(re)),
             "mean_rot_error_by_body_rad": np.mean(rot_body[i, : tracked[i]], axis=0).tolist(),
             **dict(zip(ROT_PART_KEYS, np.mean(rot_parts[i, : tracked[i]], axis=0).tolist(), strict=True)),
+            **dict(zip(ROOT_OFFSET_KEYS, np.mean(root_off[i, : tracked[i]], axis=0).tolist(), strict=True)),
             "failed": bool(fail_step[i] > 0),
             "fail_time_s": float(fail_step[i] * dt) if fail_step[i] > 0 else None,
             "fell": bool(fall_step[i] > 0),
@@ -493,6 +513,8 @@ def track_clips(
         "success_mean_rot_error_rad": mean("mean_rot_error_rad", ok),
         # where the rotation error comes from (rotation_parts), means over clips of the per-clip means
         **{k: mean(k, per_clip) for k in ROT_PART_KEYS},
+        # where the root is against the clip's (root_offsets), means over clips of the per-clip means
+        **{k: mean(k, per_clip) for k in ROOT_OFFSET_KEYS},
         # mean over clips of each body's mean rotation error (the mean of these is mean_rot_error_rad)
         "mean_rot_error_by_body_rad": dict(zip(LINK_NAMES, np.mean([r["mean_rot_error_by_body_rad"] for r in per_clip],
                                                                   axis=0).tolist(), strict=True)),
