@@ -44,7 +44,14 @@ rotation error, ``failed`` and ``fell`` (with their first times). Summary:
 - ``clip_success_rate`` (share of clips that never fail), ``fall_rate`` (share that fell while tracked),
   ``n_clips``, ``seconds_simulated`` (tracked seconds summed over clips), ``seconds_reference``
   (requested clip seconds, after the cap), ``wall_s``, the same three error means over the successful
-  clips only (``success_*``), the settings, and ``per_clip``.
+  clips only (``success_*``), the settings, and ``per_clip``;
+- where the error comes from, per clip and as means over clips: the rotation error's root heading, root tilt
+  and pose parts (:func:`rotation_parts`, ``ROT_PART_KEYS``) and the root's offset from the clip's root along
+  and across the clip's heading and in height (:func:`root_offsets`, ``ROOT_OFFSET_KEYS``).
+
+With ``stop_on_failure`` (the paper's protocol) every mean covers only the steps before a clip's failure, so a
+controller that fails after one second is scored on that second: read the errors next to
+``seconds_simulated``, or track whole clips (``stop_on_failure=False``).
 
 Humanoids sharing a client are far apart but not bit-for-bit independent (PyBullet solves the whole
 world in one pass): one clip's errors move by a few millimetres with the batch it runs in (measured on
