@@ -37,6 +37,10 @@
 # TRAIN_ARGS for the first call after a change of WORKERS (the episodes restart; everything else resumes). The
 # device copy holds at most 64 MiB, .whl included: `bash scripts/device_slim_tree.sh out training/amp_scratch
 # policies/amp_pedestrian` before the call, `bash scripts/device_slim_tree.sh back` after it.
+# BC_PAIRS=F (e.g. /tmp/bc_pairs.npz, outside the tree: a warm machine keeps /tmp between calls): make the cloning
+# pairs for the actor's cloning term there first if F is missing (python -m navzoo.agents.amp.bc --pairs-only, on
+# every core, about 50 s on 16; --amp-velocity-span BC_SPAN, default 4), then pass "--bc-coef W --bc-data F" in
+# TRAIN_ARGS. The pairs (about 60 MB) do not fit the device copy next to the wheels and a training folder.
 # INIT_DIR=DIR starts the scene training from a checkpoint returned by an earlier call (its name, meta.json and
 # state.pt.part-* files) instead of the shipped one; training/amp is then not needed and can stay behind.
 set -u
@@ -45,6 +49,13 @@ export PYTHONPATH=/tmp/site:$PWD
 nproc; nvidia-smi --query-gpu=name,memory.total --format=csv,noheader
 python3 -c "import navzoo, torch, pybullet; print('navzoo ok, cuda', torch.cuda.is_available(), torch.__version__)"
 rm -rf /tmp/amp /tmp/amp_init  # a warm machine keeps /tmp: never mix an earlier call's run into this one
+if [ -n "${BC_PAIRS:-}" ]; then
+  if [ -f "$BC_PAIRS" ]; then echo "cloning pairs: $BC_PAIRS (kept from an earlier call)"
+  else python3 -m navzoo.agents.amp.bc --pairs-only --data-out "$BC_PAIRS" --workers "$(nproc)" \
+      --amp-velocity-span "${BC_SPAN:-4}" 2>&1 | tail -2
+  fi
+  [ -f "$BC_PAIRS" ] || { echo "no cloning pairs at $BC_PAIRS: stopping before training" | tee "$OUT/train.log"; exit 1; }
+fi
 RESUME_DIR=${RESUME_DIR:-training/amp}
 TRAINER=${TRAINER:-path}
 mkdir -p /tmp/amp/checkpoints

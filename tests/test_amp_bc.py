@@ -129,6 +129,21 @@ def test_cloning_pairs_round_trip_and_bad_files_are_named(ref, tmp_path):
         load_data(tmp_path / "nan.npz")
 
 
+def test_an_interrupted_write_of_the_pairs_leaves_no_file(ref, tmp_path, monkeypatch):
+    from navzoo.agents.amp.bc import save_data
+
+    data = oracle_rollouts(ref, 2, seconds=0.1, seed=3)
+
+    def interrupted(f, **arrays):
+        f.write(b"PK half a zip")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(np, "savez_compressed", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        save_data(tmp_path / "pairs.npz", data)
+    assert not (tmp_path / "pairs.npz").exists()  # a later call (the device script's BC_PAIRS) makes them again
+
+
 def test_train_refuses_a_cloning_weight_without_pairs(tmp_path):
     from navzoo.agents.amp.train import TrainArgs, run
 

@@ -144,10 +144,14 @@ def oracle_rollouts(ref: ReferenceMotion, starts: int, seconds: float = 1.5, lea
 
 
 def save_data(path: str | Path, data: dict[str, np.ndarray]) -> Path:
-    """Write the cloning pairs (``obs``, ``act``, ``clip``, ``time``) to a compressed ``.npz`` (no pickles)."""
+    """Write the cloning pairs (``obs``, ``act``, ``clip``, ``time``) to a compressed ``.npz`` (no pickles),
+    atomically: an interrupted write leaves no file at ``path``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, **{k: np.asarray(data[k]) for k in ("obs", "act", "clip", "time")})
+    tmp = path.with_name(path.name + ".part")  # written whole, then renamed: never a half file under ``path``
+    with tmp.open("wb") as f:
+        np.savez_compressed(f, **{k: np.asarray(data[k]) for k in ("obs", "act", "clip", "time")})
+    tmp.replace(path)
     return path
 
 
