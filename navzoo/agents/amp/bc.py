@@ -112,6 +112,19 @@ def _rollout_batch(ref: ReferenceMotion, clips: np.ndarray, t0: np.ndarray, dur:
             "time": np.concatenate(time_of), "up_s": up_s}
 
 
+#: The reference motion of a rollout worker process, sent once when it starts (not with every batch).
+_WORKER_REF: ReferenceMotion | None = None
+
+
+def _set_worker_reference(ref: ReferenceMotion) -> None:
+    global _WORKER_REF
+    _WORKER_REF = ref
+
+
+def _rollout_batch_in_worker(*job: Any) -> dict[str, np.ndarray]:
+    return _rollout_batch(_WORKER_REF, *job)
+
+
 def oracle_rollouts(ref: ReferenceMotion, starts: int, seconds: float = 1.5, lead: int = 2, noise: float = 0.055,
                     seed: int = 0, config: PathTaskConfig | None = None, workers: int = 1) -> dict[str, np.ndarray]:
     """Observations (M, obs_dim) and clean oracle actions (M, 28) of ``starts`` rollouts (see the module doc),
@@ -138,8 +151,9 @@ def oracle_rollouts(ref: ReferenceMotion, starts: int, seconds: float = 1.5, lea
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
 
-        with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=mp.get_context("spawn")) as pool:
-            parts = list(pool.map(_rollout_batch, [ref] * len(jobs), *zip(*jobs, strict=True)))
+        with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=mp.get_context("spawn"),
+                                 initializer=_set_worker_reference, initargs=(ref,)) as pool:
+            parts = list(pool.map(_rollout_batch_in_worker, *zip(*jobs, strict=True)))
     return {k: np.concatenate([p[k] for p in parts]) for k in ("obs", "act", "clip", "time", "up_s")}
 
 
