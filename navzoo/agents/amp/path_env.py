@@ -163,7 +163,7 @@ class AmpPathEnv:
         cols = int(np.ceil(np.sqrt(n_patches)))
         # The patches sit on a grid from the origin towards +x, +y; the box ground is centred on the origin and must
         # reach past the last patch (with 240 envs in one process the grid is 600 m wide, past the default 500 m).
-        ground = max(GROUND_HALF_SIZE, (cols - 1) * self.cfg.spacing + self.cfg.spacing)
+        ground = max(GROUND_HALF_SIZE, cols * self.cfg.spacing)
         self.client = nzsim.connect()
         self.bodies = PhysicsHumanoids(self.client, self.num_envs, physics_hz=self.cfg.physics_hz,
                                        control_hz=self.cfg.control_hz, pd_mode=self.cfg.pd_mode,
