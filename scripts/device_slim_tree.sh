@@ -9,7 +9,8 @@
 #   bash scripts/device_slim_tree.sh back                                               # after it, always
 #
 # `out` moves every folder of training/ and policies/, docs/ and benchmarks/ to STASH (default
-# ../.device_stash, outside the repository), except the paths named. `back` moves them back. Both refuse to
+# ../.device_stash, outside the repository), except the paths named, and the exported policies (policies/) of a
+# named training folder. `back` moves them back. Both refuse to
 # overwrite anything, and `git status` shows the moved files as deleted until `back`: never commit between the two.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -33,10 +34,23 @@ case "$mode" in
       mv "$path" "$STASH/$path"
       moved=$((moved + 1))
     done
+    # a kept training folder's exported policies (a few MB each) are not needed to train: they stay behind too
+    for keep in "$@"; do
+      case "${keep%/}" in
+        training/*) if [ -d "${keep%/}/policies" ]; then
+            mkdir -p "$STASH/${keep%/}" && mv "${keep%/}/policies" "$STASH/${keep%/}/policies"; moved=$((moved + 1)); fi ;;
+      esac
+    done
     echo "moved $moved paths to $STASH; tracked files left: $(git ls-files | while read -r f; do [ -e "$f" ] && echo "$f"; done | xargs du -cb 2>/dev/null | tail -1 | cut -f1) bytes"
     ;;
   back)
     [ -d "$STASH" ] || { echo "$STASH: nothing to put back" >&2; exit 1; }
+    for sub in $(cd "$STASH" && find training -mindepth 2 -maxdepth 2 -name policies 2>/dev/null); do
+      [ -d "$(dirname "$sub")" ] || continue  # its whole training folder was moved: the loop below puts it back
+      [ -e "$sub" ] && { echo "$sub exists in the tree and in $STASH: left both as they are" >&2; exit 1; }
+      mv "$STASH/$sub" "$sub"
+      rmdir "$STASH/$(dirname "$sub")"
+    done
     for path in $(cd "$STASH" && find training policies -mindepth 1 -maxdepth 1 2>/dev/null) docs benchmarks; do
       [ -e "$STASH/$path" ] || continue
       [ -e "$path" ] && { echo "$path exists in the tree and in $STASH: left both as they are" >&2; exit 1; }

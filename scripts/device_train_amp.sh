@@ -13,7 +13,8 @@
 # checkpoint's policy, for at most TRACK_S seconds (default 120); the summary is printed and appended to train.log
 # (the call's eighth file: there is no room for a ninth). A progress signal for runs without obstacle rays, which
 # cannot run the following protocol. The device's CPU walks slightly other rollouts than the VM's: compare
-# checkpoints tracked on one kind of CPU (scripts/amp_checkpoint_tracking.py on the VM).
+# checkpoints tracked on one kind of CPU (scripts/amp_checkpoint_tracking.py on the VM). TRACK_FULL=1 (with TRACK=1):
+# also track the whole clips without the stop at failure (fall rate and errors over every second; another TRACK_S).
 #
 # Checkpoint selection (SNAPSHOT_EVERY=N, a multiple of 10): the run also exports its policy every N iterations
 # and at the start, keeps all its checkpoints, and afterwards runs the short following protocol
@@ -129,6 +130,15 @@ import json
 d = json.load(open('/tmp/amp/tracking.json'))
 print(json.dumps({k: d[k] for k in ('clip_success_rate', 'mean_pos_error_m', 'max_pos_error_m', 'mean_rot_error_rad')}))" 2>&1)" \
     | tee -a "$OUT/train.log"
+  if [ "${TRACK_FULL:-0}" = 1 ]; then  # whole clips, no stop at failure: falls and errors over every second
+    timeout "${TRACK_S:-120}" python3 -m navzoo.agents.amp.tracking /tmp/amp/track_policy --no-stop-on-failure --json \
+      > /tmp/amp/tracking_full.json
+    echo "whole-clip tracking rc=$? of $name: $(python3 -c "
+import json
+d = json.load(open('/tmp/amp/tracking_full.json'))
+print(json.dumps({k: d[k] for k in ('fall_rate', 'mean_pos_error_m', 'mean_rot_error_rad', 'seconds_simulated')}))" 2>&1)" \
+      | tee -a "$OUT/train.log"
+  fi
 fi
 cp /tmp/amp/checkpoints/$name/meta.json "$OUT/"
 split -b 15m /tmp/amp/checkpoints/$name/state.pt "$OUT/state.pt.part-"
