@@ -20,7 +20,8 @@ def test_out_keeps_the_named_paths_and_back_restores_everything(tmp_path: Path) 
     repo = tmp_path / "repo"
     (repo / "scripts").mkdir(parents=True)
     shutil.copy(ROOT / "scripts" / "device_slim_tree.sh", repo / "scripts")
-    files = ["training/run_a/state.pt.part-aa", "training/run_b/meta.json", "policies/amp/policy.pt",
+    files = ["training/run_a/state.pt.part-aa", "training/run_a/policies/policy_00000010/policy.pt",
+             "training/run_b/meta.json", "training/run_b/policies/p/policy.pt", "policies/amp/policy.pt",
              "policies/other/model.pt", "policies/README.md", "docs/x.md", "benchmarks/r/e.jsonl", "navzoo/a.py"]
     for i, f in enumerate(files):
         (repo / f).parent.mkdir(parents=True, exist_ok=True)
@@ -34,6 +35,8 @@ def test_out_keeps_the_named_paths_and_back_restores_everything(tmp_path: Path) 
     present = {f for f in files if (repo / f).exists()}
     assert present == {"training/run_a/state.pt.part-aa", "policies/amp/policy.pt", "policies/README.md", "navzoo/a.py"}
     assert (stash / "training/run_b/meta.json").exists() and (stash / "docs/x.md").exists()
+    # a kept training folder's exported policies are not needed to train: they leave too
+    assert (stash / "training/run_a/policies/policy_00000010/policy.pt").exists()
     again = _run(repo, "out")
     assert again.returncode == 1 and "run 'back' first" in again.stderr
 
