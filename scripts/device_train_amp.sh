@@ -42,6 +42,8 @@
 # pairs for the actor's cloning term there first if F is missing (python -m navzoo.agents.amp.bc --pairs-only, on
 # every core, about 50 s on 16; --amp-velocity-span BC_SPAN, default 4), then pass "--bc-coef W --bc-data F" in
 # TRAIN_ARGS. The pairs (about 60 MB) do not fit the device copy next to the wheels and a training folder.
+# BC_MIN_AHEAD=S: keep only the pairs after which the oracle's body stayed up S seconds more (bc --min-ahead); name
+# such pairs by their margin (e.g. BC_PAIRS=/tmp/bc_pairs_ahead05.npz), since a file already there is used as it is.
 # INIT_DIR=DIR starts the scene training from a checkpoint returned by an earlier call (its name, meta.json and
 # state.pt.part-* files) instead of the shipped one; training/amp is then not needed and can stay behind.
 set -u
@@ -53,7 +55,7 @@ rm -rf /tmp/amp /tmp/amp_init  # a warm machine keeps /tmp: never mix an earlier
 if [ -n "${BC_PAIRS:-}" ]; then
   if [ -f "$BC_PAIRS" ]; then echo "cloning pairs: $BC_PAIRS (kept from an earlier call)"
   else python3 -m navzoo.agents.amp.bc --pairs-only --data-out "$BC_PAIRS" --workers "$(nproc)" \
-      --amp-velocity-span "${BC_SPAN:-4}" 2>&1 | tail -2
+      --amp-velocity-span "${BC_SPAN:-4}" --min-ahead "${BC_MIN_AHEAD:-0}" 2>&1 | tail -2
   fi
   [ -f "$BC_PAIRS" ] || { echo "no cloning pairs at $BC_PAIRS: stopping before training" | tee "$OUT/train.log"; exit 1; }
 fi

@@ -158,7 +158,7 @@ def test_oracle_rollouts_are_the_same_for_any_number_of_workers(ref, monkeypatch
     one = oracle_rollouts(ref, 7, seconds=0.2, seed=4, workers=1)
     two = oracle_rollouts(ref, 7, seconds=0.2, seed=4, workers=2)
     assert one["up_s"].shape == (7,)
-    for k in ("obs", "act", "clip", "time", "up_s"):
+    for k in ("obs", "act", "clip", "time", "ahead_s", "up_s"):
         np.testing.assert_array_equal(one[k], two[k])
     other = oracle_rollouts(ref, 7, seconds=0.2, seed=5, workers=1)
     assert not np.array_equal(one["obs"], other["obs"])
@@ -180,3 +180,39 @@ def test_cli_pairs_only_writes_just_the_pairs(tmp_path, capsys):
     data = load_data(f)
     assert data["obs"].shape[0] == data["act"].shape[0] > 3
     assert list(tmp_path.iterdir()) == [f]  # no training run written
+
+
+def test_ahead_s_counts_the_seconds_the_oracle_stayed_up_and_viable_pairs_drops_the_last_ones(ref, tmp_path):
+    from navzoo.agents.amp.bc import load_data, save_data, viable_pairs
+
+    hz = PathTaskConfig().control_hz
+    # one body, pushed over by heavy action noise: every pair's seconds-to-fall, down to 0 at the fall
+    fell = oracle_rollouts(ref, 1, seconds=3.0, noise=0.6, seed=6)
+    m = len(fell["obs"])
+    assert 0 < m < 3.0 * hz and fell["up_s"][0] == pytest.approx((m - 1) / hz)
+    np.testing.assert_allclose(fell["ahead_s"], (m - 1 - np.arange(m)) / hz, atol=1e-5)
+    kept = viable_pairs(fell, 0.5)
+    n_keep = int(np.sum((m - 1 - np.arange(m)) / hz >= 0.5 - 1e-6))
+    assert len(kept["obs"]) == len(kept["act"]) == len(kept["time"]) == n_keep < m
+    np.testing.assert_array_equal(kept["obs"], fell["obs"][:n_keep])  # the first pairs of the body stay
+    assert len(viable_pairs(fell, 0.0)["obs"]) == m
+    # a body that stays up through a short rollout: all its pairs are viable however long the margin
+    short = oracle_rollouts(ref, 2, seconds=0.2, noise=0.0, seed=6)
+    assert np.isinf(short["ahead_s"]).all() and len(viable_pairs(short, 10.0)["obs"]) == len(short["obs"])
+    back = load_data(save_data(tmp_path / "pairs.npz", fell))
+    np.testing.assert_array_equal(back["ahead_s"], fell["ahead_s"])
+    with pytest.raises(ValueError, match="min_ahead_s"):
+        viable_pairs(fell, -1.0)
+    with pytest.raises(ValueError, match="no 'ahead_s'"):
+        viable_pairs({k: v for k, v in fell.items() if k != "ahead_s"}, 0.5)
+
+
+def test_cli_min_ahead_writes_fewer_pairs(tmp_path, capsys):
+    from navzoo.agents.amp.bc import load_data, main
+
+    args = ["--pairs-only", "--starts", "2", "--seconds", "2.0", "--noise", "0.6", "--seed", "6"]
+    assert main([*args, "--data-out", str(tmp_path / "all.npz")]) == 0
+    assert main([*args, "--data-out", str(tmp_path / "viable.npz"), "--min-ahead", "0.5"]) == 0
+    assert "dropped, made less than 0.5 s before a fall" in capsys.readouterr().out
+    every, viable = load_data(tmp_path / "all.npz"), load_data(tmp_path / "viable.npz")
+    assert 0 < len(viable["obs"]) < len(every["obs"]) and (viable["ahead_s"] >= 0.5).all()

@@ -31,6 +31,9 @@ them, and ``--workers N`` spreads the rollouts over N processes (the same pairs 
 :data:`BATCH` bodies draws its own noise stream from ``--seed``)::
 
     python -m navzoo.agents.amp.bc --pairs-only --data-out /tmp/bc_pairs.npz --workers 16 --amp-velocity-span 4
+
+``--min-ahead S`` keeps only the pairs after which the oracle's body stayed up at least S seconds more
+(:func:`viable_pairs`): the oracle does not balance, so its labels shortly before a fall teach the wrong action.
 """
 
 from __future__ import annotations
@@ -81,7 +84,7 @@ def _rollout_batch(ref: ReferenceMotion, clips: np.ndarray, t0: np.ndarray, dur:
     origin = np.stack([(k % cols) * SPACING, (k // cols) * SPACING, np.zeros(n)], axis=1)
     start = ref.state_at(clips, t0)
     shift = origin - np.c_[np.asarray(start.root_pos)[:, :2], np.zeros(n)]
-    obs, act, clip_of, time_of = [], [], [], []
+    obs, act, clip_of, time_of, body_of, step_of = [], [], [], [], [], []
     up_s = np.zeros(n)
     client = nzsim.connect()
     try:
@@ -99,6 +102,8 @@ def _rollout_batch(ref: ReferenceMotion, clips: np.ndarray, t0: np.ndarray, dur:
             act.append(a[up].astype(np.float32))
             clip_of.append(clips[up])
             time_of.append(t[up])
+            body_of.append(k[up])
+            step_of.append(np.full(int(up.sum()), step))
             executed = np.clip(a + noise * rng.standard_normal(a.shape), -1.0, 1.0) if noise > 0 else a
             bodies.apply_targets(*actions_to_targets(executed))
             bodies.step()
@@ -108,8 +113,11 @@ def _rollout_batch(ref: ReferenceMotion, clips: np.ndarray, t0: np.ndarray, dur:
                 break
     finally:
         nzsim.disconnect(client)
+    body, at = np.concatenate(body_of), np.concatenate(step_of)
+    # seconds the body stayed up after each pair; a body still up at the end of its rollout: inf
+    ahead = np.where(up[body], np.inf, up_s[body] - at / hz).astype(np.float32)
     return {"obs": np.concatenate(obs), "act": np.concatenate(act), "clip": np.concatenate(clip_of),
-            "time": np.concatenate(time_of), "up_s": up_s}
+            "time": np.concatenate(time_of), "ahead_s": ahead, "up_s": up_s}
 
 
 #: The reference motion of a rollout worker process, sent once when it starts (not with every batch).
@@ -128,7 +136,9 @@ def _rollout_batch_in_worker(*job: Any) -> dict[str, np.ndarray]:
 def oracle_rollouts(ref: ReferenceMotion, starts: int, seconds: float = 1.5, lead: int = 2, noise: float = 0.055,
                     seed: int = 0, config: PathTaskConfig | None = None, workers: int = 1) -> dict[str, np.ndarray]:
     """Observations (M, obs_dim) and clean oracle actions (M, 28) of ``starts`` rollouts (see the module doc),
-    plus ``clip`` / ``time`` (M,) of each sample and ``up_s`` (starts,): how long each body stayed up.
+    plus ``clip`` / ``time`` (M,) of each sample, ``ahead_s`` (M,): how long the body stayed up after the sample
+    (``inf`` if it did not fall within the rollout; see :func:`viable_pairs`), and ``up_s`` (starts,): how long
+    each body stayed up.
 
     The rollouts run in batches of :data:`BATCH` bodies, each batch with its own noise stream spawned from
     ``seed``, so the pairs are the same for any number of ``workers`` (processes; 1 runs them in this one)."""
@@ -154,17 +164,31 @@ def oracle_rollouts(ref: ReferenceMotion, starts: int, seconds: float = 1.5, lea
         with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=mp.get_context("spawn"),
                                  initializer=_set_worker_reference, initargs=(ref,)) as pool:
             parts = list(pool.map(_rollout_batch_in_worker, *zip(*jobs, strict=True)))
-    return {k: np.concatenate([p[k] for p in parts]) for k in ("obs", "act", "clip", "time", "up_s")}
+    return {k: np.concatenate([p[k] for p in parts]) for k in ("obs", "act", "clip", "time", "ahead_s", "up_s")}
+
+
+def viable_pairs(data: dict[str, np.ndarray], min_ahead_s: float) -> dict[str, np.ndarray]:
+    """The pairs after which the oracle's body stayed up at least ``min_ahead_s`` seconds more (all pairs of a body
+    that did not fall within its rollout). The oracle has no balance feedback: in the last second before a fall
+    its label is still the clip's pose, the wrong action for a body that is falling, and the cloning term would
+    teach it exactly in the states clip tracking starts from. ``up_s`` is kept as it is."""
+    if not min_ahead_s >= 0:
+        raise ValueError(f"min_ahead_s must be >= 0, got {min_ahead_s!r}")
+    if "ahead_s" not in data:
+        raise ValueError("these pairs carry no 'ahead_s' (made before 2026-11-29's fourth session): make them again")
+    keep = data["ahead_s"] >= min_ahead_s
+    return {k: (v[keep] if k != "up_s" else v) for k, v in data.items()}
 
 
 def save_data(path: str | Path, data: dict[str, np.ndarray]) -> Path:
-    """Write the cloning pairs (``obs``, ``act``, ``clip``, ``time``) to a compressed ``.npz`` (no pickles),
+    """Write the cloning pairs (``obs``, ``act``, ``clip``, ``time``, and ``ahead_s`` where present) to a compressed
+    ``.npz`` (no pickles),
     atomically: an interrupted write leaves no file at ``path``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".part")  # written whole, then renamed: never a half file under ``path``
     with tmp.open("wb") as f:
-        np.savez_compressed(f, **{k: np.asarray(data[k]) for k in ("obs", "act", "clip", "time")})
+        np.savez_compressed(f, **{k: np.asarray(data[k]) for k in ("obs", "act", "clip", "time", "ahead_s") if k in data})
     tmp.replace(path)
     return path
 
@@ -275,6 +299,8 @@ def main(argv: list[str] | None = None) -> int:
                     "navzoo train amp)")
     ap.add_argument("--pairs-only", action="store_true", help="only write the cloning pairs (--data-out), no actor")
     ap.add_argument("--workers", type=int, default=1, help="processes for the oracle rollouts (same pairs for any)")
+    ap.add_argument("--min-ahead", type=float, default=0.0, help="keep only the pairs after which the oracle's body "
+                    "stayed up at least this many seconds more (viable_pairs; 0 keeps all)")
     a = ap.parse_args(argv)
     if a.pairs_only and not a.data_out:
         ap.error("--pairs-only needs --data-out F.npz")
@@ -286,10 +312,13 @@ def main(argv: list[str] | None = None) -> int:
     task = PathTaskConfig(stage=a.stage, amp_velocity_span=a.amp_velocity_span)
     try:
         data = oracle_rollouts(ref, a.starts, a.seconds, a.lead, a.noise, a.seed, task, workers=a.workers)
+        made = len(data["obs"])
+        data = viable_pairs(data, a.min_ahead)
     except ValueError as e:
         ap.exit(2, f"error: {e}\n")
     print(f"{len(data['obs'])} samples from {a.starts} starts; bodies up a median {np.median(data['up_s']):.2f} s "
-          f"({time.time() - t0:.0f} s)", flush=True)
+          f"({time.time() - t0:.0f} s)" + (f"; {made - len(data['obs'])} dropped, made less than {a.min_ahead} s "
+                                           f"before a fall" if a.min_ahead > 0 else ""), flush=True)
     if a.data_out:
         print(f"cloning pairs -> {save_data(a.data_out, data)}", flush=True)
     if a.pairs_only:
@@ -299,7 +328,7 @@ def main(argv: list[str] | None = None) -> int:
                   "minibatch_size": a.minibatch_size, "disc_lr": a.disc_lr, "disc_grad_penalty": a.disc_grad_penalty,
                   "disc_weight_decay": a.disc_weight_decay}
     paths = write_run(a.out, actor, norm, learner_kw, task, ref, a.seed)
-    summary = {"samples": int(len(data["obs"])), "starts": a.starts, "median_up_s": float(np.median(data["up_s"])),
+    summary = {"samples": int(len(data["obs"])), "samples_made": made, "starts": a.starts, "median_up_s": float(np.median(data["up_s"])),
                **fit, **paths, "args": vars(a), "wall_s": round(time.time() - t0, 1)}
     Path(a.out, "bc.json").write_text(json.dumps(summary, indent=1))
     print(json.dumps({k: v for k, v in summary.items() if k != "args"}))
