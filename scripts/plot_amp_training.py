@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import gzip
 import json
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -92,8 +93,10 @@ def main() -> None:
     legend = "   ".join(f"{k}: {s['label']}" for k, s in enumerate(stages, 1))
     if other_stages:
         legend += "   |   dotted, " + Path(args.compare).parent.name + ": " + ", ".join(s["label"] for s in other_stages)
-    fig.text(0.5, 0.01, legend, ha="center", va="bottom", color="C3", fontsize=8, wrap=True)
-    fig.tight_layout(rect=(0, 0.04 if stages else 0, 1, 1))
+    # wrapped by hand, with room kept for every line (matplotlib's wrap=True lets long legends run into the axes)
+    lines = textwrap.wrap(legend, 190) if stages else []
+    fig.text(0.5, 0.01, "\n".join(lines), ha="center", va="bottom", color="C3", fontsize=8)
+    fig.tight_layout(rect=(0, 0.01 + 0.025 * len(lines), 1, 1))
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(args.out, dpi=110)
     print(args.out)
