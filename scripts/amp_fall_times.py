@@ -20,7 +20,7 @@ def fall_times(row: dict) -> dict:
     clips = row.get("per_clip")
     if not clips:
         raise ValueError(f"row of {row.get('source')!r} has no per-clip results")
-    t = np.array([c["fall_time_s"] for c in clips if c["fell"]], dtype=float)
+    t = np.array([c["fall_time_s"] for c in clips if c["fell"] and c["fall_time_s"] is not None], dtype=float)
     return {"source": row.get("source"), "falls": int(len(t)), "clips": len(clips),
             "median_fall_s": float(np.median(t)) if len(t) else None,
             "quartiles_fall_s": np.percentile(t, [25, 75]).round(3).tolist() if len(t) else None}

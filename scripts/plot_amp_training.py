@@ -94,7 +94,7 @@ def main() -> None:
     if other_stages:
         legend += "   |   dotted, " + Path(args.compare).parent.name + ": " + ", ".join(s["label"] for s in other_stages)
     # wrapped by hand, with room kept for every line (matplotlib's wrap=True lets long legends run into the axes)
-    lines = textwrap.wrap(legend, 190) if stages else []
+    lines = textwrap.wrap(legend.strip(" |"), 190)  # empty without stages of either run
     fig.text(0.5, 0.01, "\n".join(lines), ha="center", va="bottom", color="C3", fontsize=8)
     fig.tight_layout(rect=(0, 0.01 + 0.025 * len(lines), 1, 1))
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)

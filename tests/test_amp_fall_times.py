@@ -15,7 +15,7 @@ spec.loader.exec_module(aft)
 
 
 def _row(source, protocol, falls):
-    clips = [{"fell": t is not None, "fall_time_s": -1.0 if t is None else t} for t in falls]
+    clips = [{"fell": t is not None, "fall_time_s": t} for t in falls]  # as tracking writes them: None unless fell
     return {"source": source, "protocol": protocol, "per_clip": clips}
 
 
