@@ -1,0 +1,106 @@
+"""Pose error against falls over whole clips, one point per tracked policy: the trade-off of the cloning term.
+
+Reads the JSON lines of ``scripts/amp_checkpoint_tracking.py``; a policy needs a ``tracking_full`` row (whole
+clips, no stop at failure: falls, pose error) and gets its paper's-protocol clip share from its ``tracking`` row
+when there is one. Prints one JSON line per policy and, with ``--out``, draws the points::
+
+    python scripts/plot_amp_pose_falls.py docs/results/amp_tracking_root_offsets.jsonl \\
+        --label policies/amp_pedestrian=shipped --label git:0ccd479:training/amp=lineage \\
+        --label training/amp_scratch=scratch --out docs/img/amp_pose_vs_falls.png
+
+``--only S`` (repeatable) keeps the sources that contain S; ``--label SOURCE=NAME`` names a point (otherwise the
+last part of its source).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+
+def pose_and_falls(rows: list[dict], only: list[str] | None = None) -> list[dict]:
+    """One dict per source with a whole-clip row (the last such row of a source and checkpoint counts):
+    ``{"source", "samples_m", "pose_rad", "rot_rad", "falls", "clips_tracked"}``, in the rows' order."""
+    full: dict[tuple, dict] = {}
+    paper: dict[tuple, dict] = {}
+    for row in rows:
+        if only and not any(s in row["source"] for s in only):
+            continue
+        key = (row["source"], row.get("trained_iterations"))
+        protocol = row.get("protocol", "tracking")
+        if protocol == "tracking_full":
+            full[key] = row
+        elif protocol == "tracking":
+            paper[key] = row
+    out = []
+    for key, row in full.items():
+        missing = [k for k in ("mean_pose_rot_error_rad", "fall_rate", "mean_rot_error_rad") if k not in row]
+        if missing:
+            raise ValueError(f"whole-clip row of {key[0]!r} lacks {missing}")
+        steps = row.get("trained_steps")
+        out.append({"source": key[0], "samples_m": round(steps / 1e6, 2) if steps else None,
+                    "pose_rad": row["mean_pose_rot_error_rad"], "rot_rad": row["mean_rot_error_rad"],
+                    "falls": row["fall_rate"],
+                    "clips_tracked": paper[key]["clip_success_rate"] if key in paper else None})
+    return out
+
+
+def short_name(source: str) -> str:
+    """``training/amp_bc/policies/policy_00005617`` -> ``5617``; ``.../ab3_all_00004781`` -> ``ab3_all 4781``."""
+    last = source.rstrip("/").split("/")[-1]
+    stem, _, digits = last.rpartition("_")
+    if not digits.isdigit():
+        return last
+    return str(int(digits)) if stem in ("policy", "") else f"{stem} {int(digits)}"
+
+
+def draw(points: list[dict], labels: dict[str, str], out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7.5, 5))
+    for p in points:
+        name = labels.get(p["source"], short_name(p["source"]))
+        named = p["source"] in labels
+        ax.scatter(p["pose_rad"], 100 * p["falls"], s=40 if named else 25,
+                   color="tab:red" if named else "tab:blue", zorder=3)
+        ax.annotate(name, (p["pose_rad"], 100 * p["falls"]), textcoords="offset points", xytext=(4, 3), fontsize=7)
+    ax.set_xlabel("pose error over whole clips (rad; links relative to their root)")
+    ax.set_ylabel("clips in which the body falls (%)")
+    ax.set_title("Clip tracking over whole clips: pose against falls")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("rows", help="JSON lines written by scripts/amp_checkpoint_tracking.py")
+    ap.add_argument("--only", action="append", default=[], help="keep sources containing this (repeatable)")
+    ap.add_argument("--label", action="append", default=[], help="SOURCE=NAME for a point (repeatable)")
+    ap.add_argument("--out", help="PNG to draw")
+    a = ap.parse_args(argv)
+    labels = {}
+    for item in a.label:
+        source, sep, name = item.rpartition("=")
+        if not sep or not source:
+            ap.error(f"--label takes SOURCE=NAME, got {item!r}")
+        labels[source] = name
+    rows = [json.loads(line) for line in Path(a.rows).read_text().splitlines() if line.strip()]
+    points = pose_and_falls(rows, a.only or None)
+    if not points:
+        ap.error(f"no whole-clip (tracking_full) rows in {a.rows}" + (f" for {a.only}" if a.only else ""))
+    for p in points:
+        print(json.dumps(p))
+    if a.out:
+        draw(points, labels, Path(a.out))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
