@@ -47,12 +47,10 @@ def pose_and_falls(rows: list[dict], only: list[str] | None = None) -> list[dict
 
 
 def short_name(source: str) -> str:
-    """``training/amp_bc/policies/policy_00005617`` -> ``5617``; ``.../ab3_all_00004781`` -> ``ab3_all 4781``."""
+    """``training/amp_bc/policies/policy_00005617`` -> ``5617``; other sources: the last part of the path."""
     last = source.rstrip("/").split("/")[-1]
     stem, _, digits = last.rpartition("_")
-    if not digits.isdigit():
-        return last
-    return str(int(digits)) if stem in ("policy", "") else f"{stem} {int(digits)}"
+    return str(int(digits)) if stem == "policy" and digits.isdigit() else last
 
 
 def draw(points: list[dict], labels: dict[str, str], out: Path) -> None:
@@ -61,18 +59,22 @@ def draw(points: list[dict], labels: dict[str, str], out: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7.5, 5))
-    for p in points:
+    fig, ax = plt.subplots(figsize=(10, 5))
+    fig.subplots_adjust(left=0.08, right=0.665, bottom=0.11, top=0.92)
+    listing = []
+    for i, p in enumerate(points, start=1):
         name = labels.get(p["source"], short_name(p["source"]))
         named = p["source"] in labels
-        ax.scatter(p["pose_rad"], 100 * p["falls"], s=40 if named else 25,
-                   color="tab:red" if named else "tab:blue", zorder=3)
-        ax.annotate(name, (p["pose_rad"], 100 * p["falls"]), textcoords="offset points", xytext=(4, 3), fontsize=7)
+        x, y = p["pose_rad"], 100 * p["falls"]
+        ax.scatter(x, y, s=40 if named else 25, color="tab:red" if named else "tab:blue", zorder=3)
+        ax.annotate(str(i), (x, y), textcoords="offset points", xytext=(3, 3), fontsize=7)
+        samples = f", {p['samples_m']:g} M" if p["samples_m"] else ""
+        listing.append(f"{i:>2}  {name}{samples}: {x:.3f}, {y:.0f} %")
+    fig.text(0.685, 0.92, "policy, samples: pose (rad), falls\n\n" + "\n".join(listing), va="top", ha="left", fontsize=7, family="monospace")
     ax.set_xlabel("pose error over whole clips (rad; links relative to their root)")
     ax.set_ylabel("clips in which the body falls (%)")
     ax.set_title("Clip tracking over whole clips: pose against falls")
     ax.grid(alpha=0.3)
-    fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=120)
     plt.close(fig)

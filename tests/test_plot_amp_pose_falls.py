@@ -35,7 +35,7 @@ def test_pairs_whole_clip_rows_with_the_same_checkpoints_paper_row():
 
 def test_short_names():
     assert ppf.short_name("training/amp_bc/policies/policy_00005617") == "5617"
-    assert ppf.short_name("training/amp_bc/policies/ab3_all_00004781") == "ab3_all 4781"
+    assert ppf.short_name("training/amp_bc/policies/ab3_all_00004781") == "ab3_all_00004781"
     assert ppf.short_name("policies/amp_pedestrian") == "amp_pedestrian"
 
 
