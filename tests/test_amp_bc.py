@@ -216,3 +216,38 @@ def test_cli_min_ahead_writes_fewer_pairs(tmp_path, capsys):
     assert "dropped, made less than 0.5 s before a fall" in capsys.readouterr().out
     every, viable = load_data(tmp_path / "all.npz"), load_data(tmp_path / "viable.npz")
     assert 0 < len(viable["obs"]) < len(every["obs"]) and (viable["ahead_s"] >= 0.5).all()
+
+
+def test_pairs_get_clear_obstacle_rays_for_an_obstacle_aware_learner():
+    from navzoo.agents.amp.bc import with_clear_rays
+    from navzoo.agents.amp.features import N_RAYS, heading, obstacle_observation
+
+    data = {"obs": np.arange(12, dtype=np.float32).reshape(3, 4), "act": np.zeros((3, 2), np.float32)}
+    assert with_clear_rays(data, 4) is data
+    wide = with_clear_rays(data, 4 + N_RAYS)
+    assert wide["obs"].shape == (3, 4 + N_RAYS) and wide["obs"].dtype == np.float32
+    np.testing.assert_array_equal(wide["obs"][:, :4], data["obs"])
+    assert not wide["obs"][:, 4:].any() and wide["act"] is data["act"]
+    with pytest.raises(ValueError, match="4 observation columns; the learner takes 7"):
+        with_clear_rays(data, 7)
+    # what an obstacle-aware policy's rays read in the oracle rollouts and clip tracking: bodies 40 m apart
+    root = np.array([[0.0, 0.0], [40.0, 0.0]])
+    quat = np.array([[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0]])
+    rays = obstacle_observation(root, heading(quat), None, root, 0.3, self_disc=np.arange(2))
+    assert rays.shape == (2, N_RAYS) and not rays.any()
+
+
+def test_an_obstacle_aware_run_trains_on_pairs_made_without_rays(tmp_path):
+    from navzoo.agents.amp.bc import save_data
+    from navzoo.agents.amp.features import FEATURE_DIM
+    from navzoo.agents.amp.train import TrainArgs, run
+
+    base = FEATURE_DIM + 2 * PathTaskConfig().n_waypoints  # the pairs' width: no rays
+    rng = np.random.default_rng(0)
+    f = save_data(tmp_path / "pairs.npz", {"obs": rng.normal(size=(64, base)).astype(np.float32),
+                                           "act": rng.uniform(-1, 1, (64, 28)).astype(np.float32),
+                                           "clip": np.zeros(64, np.int64), "time": np.zeros(64)})
+    out = run(TrainArgs(out=str(tmp_path / "run"), total_steps=64, workers=1, envs_per_worker=2, stage=1,
+                        obstacles=1, hidden="32,32", minibatch_size=32, bc_coef=1.0, bc_data=str(f)))
+    assert out["global_step"] >= 64
+    assert json.loads((tmp_path / "run" / "policy" / "config.json").read_text())["obs_dim"] == base + 16

@@ -180,6 +180,22 @@ def viable_pairs(data: dict[str, np.ndarray], min_ahead_s: float) -> dict[str, n
     return {k: (v[keep] if k != "up_s" else v) for k, v in data.items()}
 
 
+def with_clear_rays(data: dict[str, np.ndarray], obs_dim: int) -> dict[str, np.ndarray]:
+    """Pairs for a learner of ``obs_dim`` inputs. Pairs are made without obstacle rays; for an obstacle-aware
+    learner (``N_RAYS`` more inputs) the rays are appended as they read with nothing within range (0, see
+    :func:`~navzoo.agents.amp.features.obstacle_observation`): the oracle rollouts run 40 m apart on open ground,
+    as clip tracking does, where an obstacle-aware policy's rays read exactly that. Any other width is refused."""
+    from navzoo.agents.amp.features import N_RAYS
+
+    width = data["obs"].shape[1]
+    if width == obs_dim:
+        return data
+    if width + N_RAYS != obs_dim:
+        raise ValueError(f"behaviour-cloning pairs have {width} observation columns; the learner takes {obs_dim} "
+                         f"({width} or {width} + {N_RAYS} obstacle rays would fit)")
+    return {**data, "obs": np.concatenate([data["obs"], np.zeros((len(data["obs"]), N_RAYS), data["obs"].dtype)], 1)}
+
+
 def save_data(path: str | Path, data: dict[str, np.ndarray]) -> Path:
     """Write the cloning pairs (``obs``, ``act``, ``clip``, ``time``, and ``ahead_s`` where present) to a compressed
     ``.npz`` (no pickles),

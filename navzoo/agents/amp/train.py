@@ -155,9 +155,9 @@ def run(args: TrainArgs) -> dict[str, Any]:
     try:
         learner = AmpLearner(env, config, device=device)
         if args.bc_data:
-            from navzoo.agents.amp.bc import load_data
+            from navzoo.agents.amp.bc import load_data, with_clear_rays
 
-            pairs = load_data(args.bc_data)
+            pairs = with_clear_rays(load_data(args.bc_data), learner.obs_dim)  # a learner with rays: open ground
             learner.set_bc_data(pairs["obs"], pairs["act"])
         result = learner.train(args.total_steps, log_dir=out, ckpt_dir=out / "checkpoints", ckpt_every=args.ckpt_every,
                                verbose=True, time_limit_s=args.time_limit_s, reset_disc=bool(args.reset_disc),
