@@ -44,6 +44,9 @@
 # TRAIN_ARGS. The pairs (about 60 MB) do not fit the device copy next to the wheels and a training folder.
 # BC_MIN_AHEAD=S: keep only the pairs after which the oracle's body stayed up S seconds more (bc --min-ahead); name
 # such pairs by their margin (e.g. BC_PAIRS=/tmp/bc_pairs_ahead05.npz), since a file already there is used as it is.
+# WIDEN_TO=141 (with OBSTACLES=1): widen the resumed checkpoint to the 16 obstacle rays first (navzoo.agents.amp.widen:
+# zero weights on the new inputs, the episodes restart). For a run trained without rays, e.g. training/amp_bc before
+# stage 3; its cloning pairs get clear rays (bc.with_clear_rays). Once only: the returned checkpoint has the rays.
 # INIT_DIR=DIR starts the scene training from a checkpoint returned by an earlier call (its name, meta.json and
 # state.pt.part-* files) instead of the shipped one; training/amp is then not needed and can stay behind.
 set -u
@@ -69,6 +72,11 @@ if [ "$TRAINER" = path ] && [ -f "$RESUME_DIR/name" ]; then
   cp "$RESUME_DIR/meta.json" /tmp/amp/checkpoints/$name/ && cp "$RESUME_DIR/latest.json" /tmp/amp/checkpoints/
   [ -f "$RESUME_DIR/metrics.jsonl.gz" ] && gunzip -c "$RESUME_DIR/metrics.jsonl.gz" > /tmp/amp/metrics.jsonl
   echo "resuming from $name"
+  if [ -n "${WIDEN_TO:-}" ]; then  # add inputs (the 16 obstacle rays: WIDEN_TO=141) to a checkpoint trained without
+    python3 -m navzoo.agents.amp.widen /tmp/amp/checkpoints/$name /tmp/amp/widened --obs-dim "$WIDEN_TO" \
+      && rm -rf /tmp/amp/checkpoints && mv /tmp/amp/widened /tmp/amp/checkpoints && echo "widened $name to $WIDEN_TO inputs" \
+      || { echo "widening $name to $WIDEN_TO inputs failed: stopping before training" | tee "$OUT/train.log"; exit 1; }
+  fi
 fi
 SNAP=${SNAPSHOT_EVERY:-0}
 SNAP_ARGS=""
