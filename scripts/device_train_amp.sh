@@ -64,6 +64,9 @@ if [ -n "${BC_PAIRS:-}" ]; then
 fi
 RESUME_DIR=${RESUME_DIR:-training/amp}
 TRAINER=${TRAINER:-path}
+if [ -n "${WIDEN_TO:-}" ] && { [ "$TRAINER" != path ] || [ ! -f "$RESUME_DIR/name" ]; }; then
+  echo "WIDEN_TO needs TRAINER=path and a checkpoint in $RESUME_DIR to widen: stopping before training" | tee "$OUT/train.log"; exit 1
+fi
 mkdir -p /tmp/amp/checkpoints
 if [ "$TRAINER" = path ] && [ -f "$RESUME_DIR/name" ]; then
   name=$(cat "$RESUME_DIR/name")
