@@ -6,10 +6,11 @@ when there is one. Prints one JSON line per policy and, with ``--out``, draws th
 
     python scripts/plot_amp_pose_falls.py docs/results/amp_tracking_root_offsets.jsonl \\
         --label policies/amp_pedestrian=shipped --label git:0ccd479:training/amp=lineage \\
-        --label training/amp_scratch=scratch --out docs/img/amp_pose_vs_falls.png
+        --label training/amp_scratch=scratch --out /tmp/pose_vs_falls.png
 
-``--only S`` (repeatable) keeps the sources that contain S; ``--label SOURCE=NAME`` names a point (otherwise the
-last part of its source).
+``--only S`` (repeatable) keeps the sources that contain S; ``--label SOURCE=NAME`` names a point (otherwise
+:func:`short_name`). The plot in docs/ has its own command under it (docs/pedestrians.md, "The cloning weight sets
+pose against falls"), with the ``--only`` selection it shows.
 """
 
 from __future__ import annotations
