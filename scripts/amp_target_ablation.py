@@ -37,7 +37,7 @@ apply to both, such as ``human_replan_blocked=all``).
 
     python scripts/amp_target_ablation.py --configs before:0.1:0.1:0,now:0.1:0:4 --seconds 200 \
         --workers 16 --out docs/results/amp_target_ablation.jsonl
-    python scripts/amp_target_ablation.py --summary docs/results/amp_target_ablation.jsonl [--by-scene]
+    python scripts/amp_target_ablation.py --summary docs/results/amp_target_ablation.jsonl [--by-scene | --pooled] [--summary-seeds 0,1]
 """
 
 from __future__ import annotations
@@ -208,20 +208,31 @@ def done_runs(rows: list[dict], configs: list[dict]) -> set[tuple]:
     return {(*_group(r), r["scene"]) for r in rows}
 
 
-def summary(path: str, by_scene: bool = False) -> str:
+def summary(path: str, by_scene: bool = False, pooled: bool = False, seeds: list[int] | None = None) -> str:
     """Markdown table of a result file: one line per configuration, crowd model and seed, or with
-    ``by_scene`` one line per configuration, crowd model and scene, pooling the seeds; where the rows
-    hold them, a second line counts the same runs one trip per goal (``pedestrians.Trips``)."""
+    ``by_scene`` one line per configuration, crowd model and scene, pooling the seeds, or with ``pooled``
+    one line per configuration and crowd model, pooling seeds and scenes (trips counted together, not
+    rates averaged); ``seeds`` keeps only those seeds' rows. Where the rows hold them, a second line counts
+    the same runs one trip per goal (``pedestrians.Trips``)."""
     from navzoo.benchmark.pedestrians import goal_trip_rates
 
+    if by_scene and pooled:
+        raise ValueError("choose one of by_scene and pooled")
     rows = [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+    if seeds is not None:
+        missing = sorted(set(seeds) - {r["seed"] for r in rows})
+        if missing:
+            raise ValueError(f"{path} holds no rows of seed(s) {', '.join(map(str, missing))}")
+        rows = [r for r in rows if r["seed"] in seeds]
     keys = ("success", "off_path", "fall", "timeout")
     lines = ["| configuration | trips | success | off path | fall | timeout | map contact | agent contact | path error (m) |",
              "|---|---|---|---|---|---|---|---|---|"]
 
     def group(r: dict) -> tuple:
         g = _group(r)
-        return (*g[:3], r["scene"], r["pedestrians"], g[4]) if by_scene else g
+        if by_scene:
+            return (*g[:3], r["scene"], r["pedestrians"], g[4])
+        return (*g[:3], g[4]) if pooled else g
 
     for g in dict.fromkeys(group(r) for r in rows):
         rs = [r for r in rows if group(r) == g]
@@ -231,8 +242,12 @@ def summary(path: str, by_scene: bool = False) -> str:
         if g[-1] != "amp":
             name = f"{name} [{g[-1]} bodies]"
         if by_scene:
-            seeds = sorted({r["seed"] for r in rs})
-            label = f"{name}, {g[3]} ({g[4]} people, seeds {','.join(map(str, seeds))})"
+            row_seeds = sorted({r["seed"] for r in rs})
+            label = f"{name}, {g[3]} ({g[4]} people, seeds {','.join(map(str, row_seeds))})"
+        elif pooled:
+            row_seeds = sorted({r["seed"] for r in rs})
+            n_scenes = len({r["scene"] for r in rs})
+            label = f"{name}, seeds {','.join(map(str, row_seeds))} pooled ({n_scenes} scenes)"
         else:
             label = f"{name}, seed {g[3]} ({len(rs)} scenes)"
         n = sum(r[k] for r in rs for k in keys)
@@ -265,9 +280,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default="amp_target_ablation.jsonl")
     ap.add_argument("--summary", metavar="JSONL", help="print the table of a result file and exit")
     ap.add_argument("--by-scene", action="store_true", help="with --summary: one line per scene, seeds pooled")
+    ap.add_argument("--pooled", action="store_true",
+                    help="with --summary: one line per configuration, seeds and scenes pooled")
+    ap.add_argument("--summary-seeds", default=None, metavar="S,S",
+                    help="with --summary: only these seeds' rows (default: all in the file)")
     args = ap.parse_args(argv)
     if args.summary:
-        print(summary(args.summary, by_scene=args.by_scene))
+        only = None if args.summary_seeds is None else [int(x) for x in args.summary_seeds.split(",")]
+        try:
+            print(summary(args.summary, by_scene=args.by_scene, pooled=args.pooled, seeds=only))
+        except ValueError as e:
+            ap.error(str(e))
         return 0
     from navzoo.benchmark.pedestrians import SCENES, people_per_scene
 

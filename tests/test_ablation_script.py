@@ -180,3 +180,28 @@ def test_the_set_field_takes_amp_humans_constants_by_type():
                        ("START_LAG", "SET takes"), ("heading=1", "SET takes")):
         with pytest.raises(ValueError, match=match):
             ablation.parse_config("c:0.1:0.1:4:2.0:0::::::::::" + bad)
+
+
+def test_the_pooled_summary_counts_trips_over_seeds_and_scenes(tmp_path, capsys):
+    cfg = ablation.parse_config("c:0.1:0.1:4:2.0:0")
+    other = ablation.parse_config("d:0.1:0.1:4:2.0:0")
+    rows = [_row(cfg, "lobby", 0, success=3, pedestrians=15), _row(cfg, "home", 1, success=1, pedestrians=5),
+            _row(cfg, "lobby", 2, success=7, pedestrians=15), _row(other, "lobby", 0, success=0, pedestrians=15)]
+    path = tmp_path / "rows.jsonl"
+    path.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    table = ablation.summary(str(path), pooled=True).splitlines()
+    assert len(table) == 4
+    # trips are summed, not rates averaged: (3 + 1 + 7) successes of (4 + 2 + 8) trips
+    assert table[2].startswith("| c, seeds 0,1,2 pooled (2 scenes) | 14 | 0.786 |")
+    assert table[3].startswith("| d, seeds 0 pooled (1 scenes) | 1 | 0.000 |")
+    kept = ablation.summary(str(path), pooled=True, seeds=[0, 1]).splitlines()
+    assert kept[2].startswith("| c, seeds 0,1 pooled (2 scenes) | 6 | 0.667 |")
+    with pytest.raises(ValueError, match="no rows of seed"):
+        ablation.summary(str(path), seeds=[5])
+    with pytest.raises(ValueError, match="one of by_scene and pooled"):
+        ablation.summary(str(path), by_scene=True, pooled=True)
+    with pytest.raises(SystemExit):
+        ablation.main(["--summary", str(path), "--summary-seeds", "7"])
+    assert "no rows of seed(s) 7" in capsys.readouterr().err
+    assert ablation.main(["--summary", str(path), "--pooled", "--summary-seeds", "2"]) == 0
+    assert "| c, seeds 2 pooled (1 scenes) | 8 | 0.875 |" in capsys.readouterr().out
