@@ -241,13 +241,11 @@ def summary(path: str, by_scene: bool = False, pooled: bool = False, seeds: list
             name = f"{name} ({crowd}{'' if settings == '{}' else ' ' + settings})"
         if g[-1] != "amp":
             name = f"{name} [{g[-1]} bodies]"
+        row_seeds = ",".join(map(str, sorted({r["seed"] for r in rs})))
         if by_scene:
-            row_seeds = sorted({r["seed"] for r in rs})
-            label = f"{name}, {g[3]} ({g[4]} people, seeds {','.join(map(str, row_seeds))})"
+            label = f"{name}, {g[3]} ({g[4]} people, seeds {row_seeds})"
         elif pooled:
-            row_seeds = sorted({r["seed"] for r in rs})
-            n_scenes = len({r["scene"] for r in rs})
-            label = f"{name}, seeds {','.join(map(str, row_seeds))} pooled ({n_scenes} scenes)"
+            label = f"{name}, seeds {row_seeds} pooled ({len({r['scene'] for r in rs})} scenes)"
         else:
             label = f"{name}, seed {g[3]} ({len(rs)} scenes)"
         n = sum(r[k] for r in rs for k in keys)
@@ -286,8 +284,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="with --summary: only these seeds' rows (default: all in the file)")
     args = ap.parse_args(argv)
     if args.summary:
-        only = None if args.summary_seeds is None else [int(x) for x in args.summary_seeds.split(",")]
         try:
+            only = None if args.summary_seeds is None else [int(x) for x in args.summary_seeds.split(",")]
             print(summary(args.summary, by_scene=args.by_scene, pooled=args.pooled, seeds=only))
         except ValueError as e:
             ap.error(str(e))
