@@ -1,0 +1,73 @@
+"""Realism split by speed (scripts/amp_realism_by_speed.py): option parsing, speed bands, keypoint residuals."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from navzoo.benchmark import realism
+
+_SPEC = importlib.util.spec_from_file_location(
+    "amp_realism_by_speed", Path(__file__).resolve().parents[1] / "scripts" / "amp_realism_by_speed.py")
+rbs = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(rbs)
+
+
+def test_bands_are_checked_and_closed_at_both_ends():
+    assert rbs.parse_bands("0.3,0.9") == [0.0, 0.3, 0.9, float("inf")]
+    assert rbs.band_labels([0.0, 0.3, float("inf")]) == ["0-0.3", ">=0.3"]
+    for bad in ("0.9,0.3", "0,1", "fast", ""):
+        with pytest.raises(SystemExit, match="--bands"):
+            rbs.parse_bands(bad)
+
+
+def test_scene_and_source_options_name_the_problem(tmp_path):
+    assert rbs.parse_scenes("lobby:15,corridor:12") == [("lobby", 15), ("corridor", 12)]
+    with pytest.raises(SystemExit, match="SCENE:PEOPLE"):
+        rbs.parse_scenes("lobby")
+    assert rbs.parse_source("kinematic") == ("kinematic", None)
+    with pytest.raises(SystemExit, match="no config.json"):
+        rbs.parse_source(f"x={tmp_path}")
+    (tmp_path / "config.json").write_text("{}")
+    assert rbs.parse_source(f"x={tmp_path}") == ("x", str(tmp_path))
+    with pytest.raises(SystemExit, match="LABEL=POLICY_DIR"):
+        rbs.parse_source("policies/amp_pedestrian")
+
+
+def _poses(n: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    kp = rng.normal(size=(n, realism.N_KEYPOINTS, 3))
+    kp[:, realism.CHEST, 2] += 3.0  # a spine to scale by
+    return realism.normalize_poses(kp)
+
+
+def test_keypoint_residuals_vanish_on_the_reference_and_grow_with_an_offset():
+    ref = _poses(300, 0)
+    rng = np.random.default_rng(1)
+    same = rbs.keypoint_residuals(ref, ref, rng)
+    assert max(same.values()) < 1e-6
+    moved = ref.copy().reshape(-1, realism.N_KEYPOINTS, 3)
+    moved[:, realism.KEYPOINT_NAMES.index("left_wrist"), 2] += 5.0  # far beyond any reference frame's wrist
+    res = rbs.keypoint_residuals(moved.reshape(len(ref), -1), ref, rng)
+    assert res["left_wrist"] > 4.0
+    assert max(v for k, v in res.items() if k != "left_wrist") < res["left_wrist"] / 4
+
+
+def test_keypoint_residuals_can_exclude_the_poses_own_clip():
+    ref = _poses(200, 2)
+    ids = np.repeat(np.arange(4), 50)
+    res = rbs.keypoint_residuals(ref, ref, np.random.default_rng(0), exclude_same=ids, ref_ids=ids)
+    assert min(v for k, v in res.items() if k != "pelvis") > 0.01  # no pose is matched to itself
+
+
+def test_score_splits_poses_by_speed_and_skips_small_bands():
+    ref_poses = _poses(400, 3)
+    ref = realism.RealismReference.fit(ref_poses, seed=0, max_samples=200)
+    speeds = np.r_[np.full(350, 1.2), np.full(50, 0.1)]
+    out = rbs.score(ref_poses, speeds, [0.0, 0.3, float("inf")], ref)
+    assert out["all"]["n"] == 400 and out["0-0.3"]["n"] == 50 and out[">=0.3"]["n"] == 350
+    assert out["0-0.3"]["share"] == pytest.approx(0.125)
+    assert "mmd" in out[">=0.3"] and "mmd" not in out["0-0.3"]  # fewer than 100 poses: no metrics
