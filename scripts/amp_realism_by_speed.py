@@ -12,9 +12,14 @@ the following protocol (same scenes, people, social-force targets) and scores th
 A source is ``kinematic`` (the walk-cycle replay) or ``LABEL=POLICY_DIR`` (an exported AMP policy). Per source
 and band: the share of its poses in the band, and realism_metrics of those poses against the whole reference.
 The reference rows score the reference's own frames of each band the same way: what the speed mix alone does.
-And per source, where in the body the poses differ from the clips: for (up to 5,000 of) its poses the nearest
-reference frame (all 45 coordinates), and the mean distance of each keypoint to that frame's keypoint, in spine
-lengths (the reference rows: each frame against the nearest frame of another clip).
+And per source, where in the body the poses differ from the clips: the posture bias (its mean walking pose minus
+the clips' mean walking pose, per keypoint, spine lengths) with the MMD left once every pose is shifted by minus
+that bias; and, for (up to 5,000 of) its poses, the nearest reference frame (all 45 coordinates) and the mean
+distance of each keypoint to that frame's keypoint (the reference rows: each frame against the nearest frame of
+another clip).
+With ``--tracking`` each policy is also scored on its own closed-loop tracking of the reference clips (the
+paper's protocol over whole clips, poses of the standing body every control step): the poses it makes when the
+clips steer it, against those it makes walking the crowd task.
 Poses are recorded every ``--pose-every`` control steps (30 Hz) of every standing body, as the protocol does.
 """
 
@@ -28,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from navzoo.agents.amp.tracking import load_motions
+from navzoo.agents.amp.tracking import load_motions, track_clips
 from navzoo.benchmark import realism
 from navzoo.benchmark.pedestrians import _make, body_keypoints
 
@@ -145,6 +150,21 @@ def keypoint_residuals(poses: np.ndarray, ref_poses: np.ndarray, rng: np.random.
     return {name: float(v) for name, v in zip(realism.KEYPOINT_NAMES, res, strict=True)}
 
 
+def posture(poses: np.ndarray, speeds: np.ndarray, ref_poses: np.ndarray, ref_speeds: np.ndarray, ref,
+            walk: float) -> dict:
+    """A posture bias: the mean walking pose (speed >= ``walk``) minus the reference's mean walking pose, per
+    keypoint (x forward, y left, z up, spine lengths), and the MMD of all poses once each is shifted by
+    minus that bias (what is left of the MMD without it)."""
+    mine, theirs = poses[speeds >= walk], ref_poses[ref_speeds >= walk]
+    if len(mine) < 100:
+        return {}
+    bias = mine.mean(0) - theirs.mean(0)
+    shifted = realism.realism_metrics(poses - bias, ref)["mmd"]
+    per_kp = bias.reshape(realism.N_KEYPOINTS, 3)
+    return {"mmd_bias_removed": float(shifted),
+            "bias": {k: [float(v) for v in per_kp[i]] for i, k in enumerate(realism.KEYPOINT_NAMES)}}
+
+
 def table(result: dict) -> str:
     labels = ["all", *band_labels([0.0, *result["bands"], float("inf")])]
     lines = ["| source | band (m/s) | share of poses | coverage / entropy K=50 | coverage / entropy K=100 | MMD |",
@@ -163,6 +183,14 @@ def table(result: dict) -> str:
               "|---" * (len(names) + 1) + "|"]
     for k in realism.KEYPOINT_NAMES:
         lines.append(f"| {k} | " + " | ".join(f"{result['keypoints'][n][k]:.3f}" for n in names) + " |")
+    bi = [n for n in names if result["posture"].get(n)]
+    lines += ["", "| keypoint: mean walking pose minus the clips' (x fwd, y left, z up; spine lengths) | "
+              + " | ".join(bi) + " |", "|---" * (len(bi) + 1) + "|"]
+    for k in realism.KEYPOINT_NAMES[1:]:
+        lines.append(f"| {k} | " + " | ".join("{:+.2f} {:+.2f} {:+.2f}".format(*result["posture"][n]["bias"][k])
+                                             for n in bi) + " |")
+    lines.append("| MMD with the bias removed (all poses) | "
+                 + " | ".join(f"{result['posture'][n]['mmd_bias_removed']:.3f}" for n in bi) + " |")
     return "\n".join(lines)
 
 
@@ -175,6 +203,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--pose-every", type=int, default=3, help="record poses every N control steps (default 3)")
     ap.add_argument("--bands", default="0.3,0.9", help="speed band edges in m/s (default %(default)s)")
     ap.add_argument("--motions", default=None, help="reference clips folder (default: packaged locomotion)")
+    ap.add_argument("--walk", type=float, default=0.9, help="walking speed (m/s) for the posture bias (default 0.9)")
+    ap.add_argument("--tracking", action="store_true",
+                    help="also score each policy's closed-loop tracking of the reference clips (whole clips)")
     ap.add_argument("--out", default=None, help="write the JSON result here")
     args = ap.parse_args(argv)
     if args.seconds <= 0 or args.pose_every < 1:
@@ -189,10 +220,11 @@ def main(argv: list[str] | None = None) -> int:
     ref_poses, ref_speeds, ref_ids = reference_speeds(lib)
     ref = realism.RealismReference.fit(ref_poses, seed=args.seed)
     result = {"scenes": [f"{s}:{n}" for s, n in scenes], "seconds": args.seconds, "seed": args.seed,
-              "pose_every": args.pose_every, "bands": bands[1:-1], "reference_mmd_floor": ref.mmd_floor,
+              "pose_every": args.pose_every, "tracking": bool(args.tracking), "bands": bands[1:-1], "reference_mmd_floor": ref.mmd_floor,
               "sources": {"reference clips": score(ref_poses, ref_speeds, bands, ref)},
               "keypoints": {"reference clips": keypoint_residuals(ref_poses, ref_poses, np.random.default_rng(args.seed),
-                                                                  exclude_same=ref_ids, ref_ids=ref_ids)}}
+                                                                  exclude_same=ref_ids, ref_ids=ref_ids)},
+              "posture": {}}
     for label, policy in sources:
         t0 = time.time()
         runs = [run_scene(s, n, args.seconds, args.seed, policy, args.pose_every) for s, n in scenes]
@@ -202,7 +234,17 @@ def main(argv: list[str] | None = None) -> int:
             raise SystemExit(f"{label}: no standing poses were recorded")
         result["sources"][label] = score(poses, speeds, bands, ref)
         result["keypoints"][label] = keypoint_residuals(poses, ref_poses, np.random.default_rng(args.seed))
+        result["posture"][label] = posture(poses, speeds, ref_poses, ref_speeds, ref, args.walk)
         print(f"{label}: {len(poses)} poses in {time.time() - t0:.0f} s", file=sys.stderr, flush=True)
+        if args.tracking and policy is not None:
+            sink: list = []
+            track_clips(policy, lib, stop_on_failure=False, pose_sink=sink)
+            poses = np.concatenate([p for p, _ in sink])
+            speeds = np.concatenate([v for _, v in sink])
+            name = f"{label} (clip tracking)"
+            result["sources"][name] = score(poses[::args.pose_every], speeds[::args.pose_every], bands, ref)
+            result["keypoints"][name] = keypoint_residuals(poses, ref_poses, np.random.default_rng(args.seed))
+            result["posture"][name] = posture(poses, speeds, ref_poses, ref_speeds, ref, args.walk)
     print(table(result))
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)

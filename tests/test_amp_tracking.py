@@ -274,3 +274,17 @@ def test_path_end_is_recorded_and_checked(library):
     assert hold["path_end"] == "hold" and ext["path_end"] == "extend"
     with pytest.raises(ValueError, match="path_end"):
         track_clips(DEFAULT_POLICY_DIR, library, [0], max_seconds=0.1, path_end="stop")
+
+
+def test_pose_sink_collects_the_standing_bodies_poses_and_speeds(library):
+    from navzoo.benchmark.realism import POSE_DIM
+
+    sink: list = []
+    res = track_clips(DEFAULT_POLICY_DIR, library, CLIPS[:2], max_seconds=0.5, pose_sink=sink)
+    steps = round(res["seconds_simulated"] * 30)  # 30 Hz control, both clips tracked to the end
+    assert res["n_fell"] == 0 and sum(len(p) for p, _ in sink) == steps
+    for poses, speeds in sink:
+        assert poses.shape[1] == POSE_DIM and speeds.shape == (len(poses),)
+        assert np.isfinite(poses).all() and (speeds >= 0).all() and (speeds < 5).all()
+    assert track_clips(DEFAULT_POLICY_DIR, library, CLIPS[:2], max_seconds=0.5)["mean_pos_error_m"] == \
+        res["mean_pos_error_m"]  # collecting poses does not change the rollout

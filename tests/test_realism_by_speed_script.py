@@ -71,3 +71,17 @@ def test_score_splits_poses_by_speed_and_skips_small_bands():
     assert out["all"]["n"] == 400 and out["0-0.3"]["n"] == 50 and out[">=0.3"]["n"] == 350
     assert out["0-0.3"]["share"] == pytest.approx(0.125)
     assert "mmd" in out[">=0.3"] and "mmd" not in out["0-0.3"]  # fewer than 100 poses: no metrics
+
+
+def test_posture_bias_is_the_mean_walking_offset_and_removing_it_lowers_the_mmd():
+    ref_poses = _poses(600, 4)
+    ref = realism.RealismReference.fit(ref_poses, seed=0, max_samples=300)
+    fast = np.full(len(ref_poses), 1.2)
+    shift = np.zeros(realism.POSE_DIM)
+    shift[realism.KEYPOINT_NAMES.index("right_foot") * 3] = 0.7  # the right foot ahead, on average
+    gen = _poses(600, 5) + shift
+    out = rbs.posture(gen, fast, ref_poses, fast, ref, walk=0.9)
+    assert out["bias"]["right_foot"][0] == pytest.approx(0.7, abs=0.15)
+    assert abs(out["bias"]["left_foot"][0]) < 0.15
+    assert out["mmd_bias_removed"] < realism.realism_metrics(gen, ref)["mmd"]
+    assert rbs.posture(gen, np.zeros(len(gen)), ref_poses, fast, ref, walk=0.9) == {}  # no walking poses

@@ -308,8 +308,9 @@ def _track_batch(
     fail_threshold: float,
     stop_on_failure: bool,
     path_end: str = "extend",
+    pose_sink: list | None = None,
 ) -> list[dict[str, Any]]:
-    """Track clips ``idx`` with one humanoid each in one PyBullet client."""
+    """Track clips ``idx`` with one humanoid each in one PyBullet client (``pose_sink``: see :func:`track_clips`)."""
     n = len(idx)
     hz = cfg.control_hz
     dt = 1.0 / hz
@@ -383,6 +384,12 @@ def _track_batch(
             tracked[active] = step
             fallen = bodies.fallen()
             fall_step[active & fallen & (fall_step < 0)] = step
+            if pose_sink is not None and (active & ~fallen).any():
+                from navzoo.benchmark.realism import poses_from_state
+
+                up = active & ~fallen
+                pose_sink.append((poses_from_state({k: state[k][up] for k in ("root_pos", "root_quat", "sph", "rev")}),
+                                  np.linalg.norm(state["root_lin_vel"][up, :2], axis=1)))
             fail_step[active & (pe > fail_threshold) & (fail_step < 0)] = step
             still = (step + 1 <= n_steps) & ((fail_step < 0) if stop_on_failure else True)
             if not still.any():
@@ -430,6 +437,7 @@ def track_clips(
     path_end: str = "extend",
     steering_trim: float | None = None,
     symmetric: bool | None = None,
+    pose_sink: list | None = None,
 ) -> dict[str, Any]:
     """Track reference clips with the deterministic AMP policy in closed loop (see the module doc).
 
@@ -457,6 +465,9 @@ def track_clips(
             see :mod:`navzoo.agents.amp.steering`).
         symmetric: make the policy left/right symmetric (:mod:`navzoo.agents.amp.symmetry`; drops the
             steering trim); None: the policy's own setting.
+        pose_sink: a list; if given, every control step of every tracked, standing body appends
+            (normalised poses (B, 45) as :func:`navzoo.benchmark.realism.poses_from_state`, horizontal root
+            speeds (B,) m/s), for the realism of the tracking rollouts.
 
     Returns:
         The summary dict (keys in the module doc), with ``per_clip`` a list of per-clip dicts. The rollouts run
@@ -498,7 +509,7 @@ def track_clips(
     with one_torch_thread():
         for b in range(0, len(idx), int(batch_size)):
             per_clip += _track_batch(policy, lib, idx[b : b + int(batch_size)], max_seconds, cfg,
-                                     float(fail_threshold), bool(stop_on_failure), path_end)
+                                     float(fail_threshold), bool(stop_on_failure), path_end, pose_sink)
     wall = time.perf_counter() - t0
 
     def mean(key: str, rows: list[dict[str, Any]]) -> float | None:
