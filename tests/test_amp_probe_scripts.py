@@ -54,3 +54,27 @@ def test_the_motor_gain_probe_measures_noise_as_jitter(lib):
     assert clean["n_starts"] == 4 and 0.0 <= clean["up_1s"] <= 1.0
     assert clean["rot_err_local_1s"] < noisy["rot_err_local_1s"]
     assert clean["jitter_ratio"] < noisy["jitter_ratio"]
+
+
+def test_stance_offset_probe_offsets_the_chosen_actions_and_leaves_the_rest(lib):
+    import numpy as np
+
+    probe = _script("amp_stance_offset_probe")
+
+    class Fixed:
+        obs_dim = 7
+
+        def __call__(self, obs):
+            return np.full((len(obs), 28), 0.95)
+
+    offset = np.zeros(28)
+    offset[probe.GROUPS["knees"]] = -0.5
+    wrapped = probe.OffsetPolicy(Fixed(), offset)
+    a = wrapped(np.zeros((3, 7)))
+    assert wrapped.obs_dim == 7  # attributes pass through to the policy
+    assert np.allclose(a[:, probe.GROUPS["knees"]], 0.45) and np.allclose(np.delete(a, probe.GROUPS["knees"], 1), 0.95)
+    assert len(wrapped.actions) == 1 and wrapped.actions[0].max() <= 1.0
+    mean = probe.reference_mean_action(lib)
+    assert mean.shape == (28,) and np.isfinite(mean).all() and np.abs(mean).max() <= 1.0
+    with pytest.raises(SystemExit, match="unknown group"):
+        probe.main(["policies/amp_pedestrian", "--joints", "hips,tail"])
