@@ -103,16 +103,10 @@ def run_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str | N
 
 
 def reference_speeds(lib, fps: float = realism.DEFAULT_FPS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The reference's poses (as realism.clip_poses), each frame's horizontal root speed (central
-    difference over the clip's own frames; one-sided at the ends) and its clip index."""
+    """The reference's poses (as realism.clip_poses), each frame's horizontal root speed
+    (realism.clip_root_speeds) and its clip index."""
     poses, cid = realism.clip_poses(lib, fps=fps, return_clip_ids=True)
-    speeds = np.empty(len(cid))
-    for c in np.unique(cid):
-        rows = np.flatnonzero(cid == c)
-        t = realism.clip_times(lib, int(c), fps)
-        xy = lib.state_at(np.full(t.shape, c), t).root_pos[:, :2]
-        speeds[rows] = np.linalg.norm(np.gradient(xy, 1.0 / fps, axis=0), axis=1) if len(t) > 1 else 0.0
-    return poses, speeds, cid
+    return poses, realism.clip_root_speeds(lib, fps), cid
 
 
 def score(poses: np.ndarray, speeds: np.ndarray, bands: list[float], ref) -> dict:

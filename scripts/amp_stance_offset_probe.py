@@ -100,15 +100,10 @@ def main(argv: list[str] | None = None) -> int:
     cols = sorted({c for g in args.joints.split(",") for c in GROUPS[g]})
 
     lib = tracking.load_motions(None)
-    ref_poses, ref_ids = realism.clip_poses(lib, return_clip_ids=True)
+    ref_poses = realism.clip_poses(lib)
     ref = realism.RealismReference.fit(ref_poses, seed=0)
     # the clips' mean walking pose, as amp_realism_by_speed.py (frames at 0.9 m/s and more)
-    speeds = np.empty(len(ref_ids))
-    for c in np.unique(ref_ids):
-        t = realism.clip_times(lib, int(c))
-        xy = lib.state_at(np.full(t.shape, c), t).root_pos[:, :2]
-        speeds[ref_ids == c] = np.linalg.norm(np.gradient(xy, 1.0 / 30.0, axis=0), axis=1) if len(t) > 1 else 0.0
-    ref_mean_pose = ref_poses[speeds >= 0.9].mean(0)
+    ref_mean_pose = ref_poses[realism.clip_root_speeds(lib) >= 0.9].mean(0)
 
     a_ref = reference_mean_action(lib)
     row0, a_pol = track(args.policy_dir, lib, np.zeros(28), ref, ref_mean_pose)

@@ -135,6 +135,18 @@ def test_clip_poses_are_the_30hz_frames(lib):
     np.testing.assert_allclose(by_name, x[cid == 2], atol=1e-12)
 
 
+def test_clip_root_speeds_follow_the_clip_poses_frames(lib):
+    from navzoo.benchmark.realism import clip_root_speeds
+
+    sub = lib.select(names=lib.clip_names()[:3])
+    _, cid = clip_poses(sub, return_clip_ids=True)
+    v = clip_root_speeds(sub)
+    assert v.shape == cid.shape and (v >= 0).all()
+    xy = np.asarray(sub.frames(0)["root_pos"])[:, :2]
+    path = np.linalg.norm(np.diff(xy, axis=0), axis=1).sum()
+    assert np.mean(v[cid == 0]) == pytest.approx(path / sub.duration(0), rel=0.05)  # the mean speed of the clip
+
+
 # --- k-means statistics and MMD ---------------------------------------------------------------------
 
 

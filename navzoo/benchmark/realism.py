@@ -251,6 +251,17 @@ def clip_poses(
     return (poses, cid_a) if return_clip_ids else poses
 
 
+def clip_root_speeds(library: Any, fps: float = DEFAULT_FPS) -> np.ndarray:
+    """Horizontal root speed (M,) m/s of every frame of :func:`clip_poses` (all clips, same order): the central
+    difference over each clip's own frames at ``fps`` (one-sided at its ends; 0 for a one-frame clip)."""
+    out = []
+    for c in range(len(library)):
+        t = clip_times(library, c, fps)
+        xy = np.asarray(library.state_at(np.full(t.shape, c), t).root_pos)[:, :2]
+        out.append(np.linalg.norm(np.gradient(xy, 1.0 / fps, axis=0), axis=1) if len(t) > 1 else np.zeros(len(t)))
+    return np.concatenate(out)
+
+
 # --------------------------------------------------------------------------------------------------
 # k-means and kernels
 # --------------------------------------------------------------------------------------------------
@@ -573,6 +584,7 @@ __all__ = [
     "METRIC_KEYS",
     "RealismReference",
     "clip_poses",
+    "clip_root_speeds",
     "hip_heading",
     "keypoints_from_state",
     "kmeans",
