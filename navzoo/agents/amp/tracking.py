@@ -93,6 +93,7 @@ from navzoo.agents.motion_lib import DEFAULT_NAME, LINK_NAMES, MotionLibrary, hu
 from navzoo.agents.quat import heading as quat_heading
 from navzoo.agents.quat import quat_about_z, quat_angle, quat_conj, quat_mul, quat_normalize
 from navzoo.agents.reference import ReferenceState
+from navzoo.benchmark.realism import poses_from_state
 from navzoo.torch_threads import one_torch_thread
 
 #: A clip fails once the per-step mean rigid-body position error exceeds this (m).
@@ -384,10 +385,8 @@ def _track_batch(
             tracked[active] = step
             fallen = bodies.fallen()
             fall_step[active & fallen & (fall_step < 0)] = step
-            if pose_sink is not None and (active & ~fallen).any():
-                from navzoo.benchmark.realism import poses_from_state
-
-                up = active & ~fallen
+            up = active & ~fallen
+            if pose_sink is not None and up.any():
                 pose_sink.append((poses_from_state({k: state[k][up] for k in ("root_pos", "root_quat", "sph", "rev")}),
                                   np.linalg.norm(state["root_lin_vel"][up, :2], axis=1)))
             fail_step[active & (pe > fail_threshold) & (fail_step < 0)] = step
