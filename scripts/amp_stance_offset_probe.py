@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from navzoo.agents.amp import tracking
+from navzoo.agents.amp.checkpoint import load_policy
 from navzoo.agents.amp.sim import targets_to_actions
 from navzoo.benchmark import realism
 
@@ -61,15 +62,9 @@ def reference_mean_action(lib) -> np.ndarray:
 
 
 def track(policy_dir: str, lib, offset: np.ndarray, ref: realism.RealismReference, ref_mean_pose: np.ndarray):
-    base = tracking._load_policy_dir(policy_dir)
-    wrapped = OffsetPolicy(base, offset)
-    original = tracking._load_policy_dir
-    tracking._load_policy_dir = lambda *a, **k: wrapped
-    try:
-        sink: list = []
-        res = tracking.track_clips(policy_dir, lib, stop_on_failure=False, pose_sink=sink)
-    finally:
-        tracking._load_policy_dir = original
+    wrapped = OffsetPolicy(load_policy(policy_dir), offset)
+    sink: list = []
+    res = tracking.track_clips(wrapped, lib, stop_on_failure=False, pose_sink=sink)
     poses = np.concatenate([p for p, _ in sink])
     speeds = np.concatenate([v for _, v in sink])
     walk = poses[speeds >= 0.9]

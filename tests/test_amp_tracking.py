@@ -288,3 +288,12 @@ def test_pose_sink_collects_the_standing_bodies_poses_and_speeds(library):
         assert np.isfinite(poses).all() and (speeds >= 0).all() and (speeds < 5).all()
     assert track_clips(DEFAULT_POLICY_DIR, library, CLIPS[:2], max_seconds=0.5)["mean_pos_error_m"] == \
         res["mean_pos_error_m"]  # collecting poses does not change the rollout
+
+
+def test_a_loaded_policy_tracks_as_its_folder_does(library):
+    from navzoo.agents.amp.checkpoint import load_policy
+
+    by_dir = track_clips(DEFAULT_POLICY_DIR, library, CLIPS[:1], max_seconds=0.3)
+    loaded = track_clips(load_policy(DEFAULT_POLICY_DIR), library, CLIPS[:1], max_seconds=0.3)
+    assert loaded["mean_pos_error_m"] == by_dir["mean_pos_error_m"]
+    assert loaded["policy_dir"] != by_dir["policy_dir"] and isinstance(loaded["policy_dir"], str)

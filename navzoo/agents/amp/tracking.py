@@ -422,7 +422,7 @@ def _track_batch(
 
 
 def track_clips(
-    policy_dir: str | Path = DEFAULT_POLICY_DIR,
+    policy_dir: str | Path | Any = DEFAULT_POLICY_DIR,
     motions: str | Path | MotionLibrary | None = None,
     clips: Sequence[int | str] | int | str | None = None,
     max_seconds: float | None = None,
@@ -441,7 +441,9 @@ def track_clips(
     """Track reference clips with the deterministic AMP policy in closed loop (see the module doc).
 
     Args:
-        policy_dir: an exported policy (``config.json`` + ``policy.pt``).
+        policy_dir: an exported policy (``config.json`` + ``policy.pt``), or a policy already loaded
+            (:func:`~navzoo.agents.amp.checkpoint.load_policy`'s result, or a wrapper of it that maps
+            observations to actions and has its ``obs_dim``).
         motions: a :class:`MotionLibrary`, a library folder, or None: the packaged library's
             navigation locomotion (the training clips).
         clips: indices or names of the clips to track (default: all of ``motions``).
@@ -485,7 +487,7 @@ def track_clips(
     if path_end not in PATH_ENDS:
         raise ValueError(f"path_end must be one of {PATH_ENDS}, got {path_end!r}")
     cfg = config or PathTaskConfig()
-    policy = _load_policy_dir(policy_dir, device)
+    policy = _load_policy_dir(policy_dir, device) if isinstance(policy_dir, str | Path) else policy_dir
     if steering_trim is not None or symmetric is not None:  # checked by AmpPolicy
         policy.override(steering_trim, symmetric)
     obs_dim = _base_obs_dim(cfg)
@@ -543,7 +545,7 @@ def track_clips(
         "stop_on_failure": bool(stop_on_failure),
         "path_end": path_end,
         "pd_mode": cfg.pd_mode,
-        "policy_dir": str(policy_dir),
+        "policy_dir": str(policy_dir) if isinstance(policy_dir, str | Path) else type(policy_dir).__name__,
         "per_clip": per_clip,
     }
 
