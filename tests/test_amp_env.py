@@ -219,6 +219,50 @@ def test_the_optional_progress_reward_pays_for_walking_toward_the_path_and_chang
             NavConfig(human_model="amp", dt=DT, amp_progress_reward=bad)
 
 
+def test_foot_split_is_the_right_foots_lead_along_the_heading():
+    from navzoo.envs.amp_humans import foot_split
+
+    key = np.zeros((2, 5, 3))
+    key[:, 2, :2] = [0.3, 0.1]   # right foot
+    key[:, 3, :2] = [-0.2, -0.1]  # left foot
+    yaw = np.array([0.0, np.pi / 2])
+    quat = np.stack([np.zeros(2), np.zeros(2), np.sin(yaw / 2), np.cos(yaw / 2)], axis=1)  # x, y, z, w
+    split = foot_split({"root_quat": quat, "key_pos": key})
+    np.testing.assert_allclose(split, [0.5, 0.2], atol=1e-9)  # facing +x: 0.5 ahead; facing +y: 0.2 ahead
+
+
+def test_the_optional_stance_reward_charges_the_running_mean_of_the_feet_split_past_its_free_band_only():
+    from navzoo.agents.amp.checkpoint import load_policy
+    from navzoo.agents.amp.pedestrian_policy import default_policy_dir
+    from navzoo.envs.amp_humans import STANCE_FREE_M, STANCE_TAU_S, foot_split
+
+    act = load_policy(default_policy_dir())
+    envs = [_raw(n_robots=0, n_humans=3, max_episode_steps_override=120),
+            _raw(n_robots=0, n_humans=3, max_episode_steps_override=120, amp_stance_reward=0.7)]
+    obs = [e.reset(seed=4)[0] for e in envs]
+    np.testing.assert_array_equal(envs[1].amp.stance, 0.0)
+    mean = np.zeros(3)
+    for _ in range(90):
+        acts = {h: np.clip(act(obs[0][h][None])[0], -1, 1) for h in obs[0]}
+        (o0, r0, *_, i0), (o1, r1, *_, i1) = (e.step(acts) for e in envs)
+        obs = [o0, o1]
+        mean += (1.0 / (30 * STANCE_TAU_S)) * (foot_split(envs[1].amp.state()) - mean)
+        for h in r0:
+            np.testing.assert_array_equal(o0[h], o1[h])  # the same world: only the reward differs
+            assert i0[h]["reward/stance"] == i1[h]["reward/stance"] <= 0.0  # logged whatever the weight
+            assert r1[h] == pytest.approx(r0[h] + 0.7 * i1[h]["reward/stance"], abs=1e-6)
+    np.testing.assert_allclose(envs[1].amp.stance, mean, atol=1e-9)
+    last = [i1[h]["reward/stance"] for h in sorted(r1)]
+    np.testing.assert_allclose(last, -np.maximum(0.0, np.abs(mean) - STANCE_FREE_M), atol=1e-9)
+    # the shipped policy keeps its right foot ahead (docs/pedestrians.md, "Where the realism gap lies")
+    assert envs[1].amp.stance.mean() > 0.15
+    for e in envs:
+        e.close()
+    for bad in (-0.1, float("nan"), True, "1"):
+        with pytest.raises(ValueError, match="amp_stance_reward"):
+            NavConfig(human_model="amp", dt=DT, amp_stance_reward=bad)
+
+
 def test_follow_scene_runs_on_one_torch_thread_and_gives_the_callers_back(monkeypatch):
     """One torch thread whoever calls it, so ``--workers 1`` and pool workers sum floats alike (a two-thread
     inline run walked other trips than the pool's single-thread runs of the same seed)."""

@@ -24,6 +24,7 @@ import pybullet as p
 
 from navzoo.agents.amp.features import (
     FEATURE_DIM,
+    KEY_BODY_NAMES,
     N_RAYS,
     heading,
     obstacle_observation,
@@ -155,6 +156,22 @@ TARGET_SPEED_CAP = 0.0
 # seed 1, more timeouts in the open scenes, the home and doorway no better; scripts/device_yield_hold_ablation.sh,
 # docs/pedestrians.md).
 YIELD_HOLD_S = 0.0
+# Time constant (s) of the running mean of the feet's fore-aft split that NavConfig.amp_stance_reward
+# penalises: about a gait cycle, so a walking gait's alternation averages out (a 1.1 s stride of +-0.3 m
+# leaves about +-0.05 m) while a foot kept ahead does not.
+STANCE_TAU_S = 1.0
+# ... and the running mean's free band (m): the reference clips' own gait leaves |mean| 0.067 m on average
+# (90th percentile 0.093 m, over the clips after their first second), so only the excess over this is charged
+# and a normal stride costs nothing.
+STANCE_FREE_M = 0.1
+
+
+def foot_split(state: dict[str, np.ndarray]) -> np.ndarray:
+    """(H,) the right foot's lead over the left foot along each body's heading (m): positive when the right
+    foot is ahead. ``state`` is :meth:`PhysicsHumanoids.read_state` (``key_pos`` in ``KEY_BODY_NAMES`` order)."""
+    h = heading(state["root_quat"])
+    d = state["key_pos"][:, KEY_BODY_NAMES.index("right_foot"), :2] - state["key_pos"][:, KEY_BODY_NAMES.index("left_foot"), :2]
+    return np.cos(h) * d[:, 0] + np.sin(h) * d[:, 1]
 
 
 def limit_turn(v_prev: np.ndarray, v_new: np.ndarray, max_angle: float, moving: float = 0.1,
@@ -311,6 +328,7 @@ class AmpHumans:
         self.k_prog = np.zeros(self.n, dtype=int)  # index of each person's current target point
         self.lag_all = env.diffusion is not None or LAG_LIMIT_RULES  # every target held to LAG_LIMIT_S (progress_index)
         self.fallen = np.zeros(self.n, dtype=bool)
+        self.stance = np.zeros(self.n)  # running mean of foot_split (STANCE_TAU_S), updated by task_reward
         self.sfm = SocialForceParams()
         self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN)
         model = env.config.crowd_model
@@ -325,6 +343,7 @@ class AmpHumans:
         self.bodies.set_state(self.bodies.standing_state(pos, yaw))
         self.t = 0
         self.fallen[:] = False
+        self.stance[:] = 0.0  # the standing start has its feet side by side
         self.extra_replan = -1
         self._goals_seen[:] = -1  # the first plan after a reset starts every person's first trip
         self.plan_all()
@@ -473,8 +492,12 @@ class AmpHumans:
             self.extra_replan = self.t + int(round(START_REPLAN_S * CONTROL_HZ)) if replan and START_REPLAN_S > 0 else -1
 
     def task_reward(self) -> dict[str, np.ndarray]:
-        """The controller's task reward terms (the paper's r_tau, r_e, r_d with its alpha values)."""
+        """The controller's task reward terms (the paper's r_tau, r_e, r_d with its alpha values), and
+        ``stance``: minus the excess of the absolute running mean of :func:`foot_split` over ``STANCE_FREE_M``
+        (``NavConfig.amp_stance_reward``).
+        Call once per env step: it advances that running mean."""
         s = self.state()
+        self.stance += min(1.0, self.control_steps / (CONTROL_HZ * STANCE_TAU_S)) * (foot_split(s) - self.stance)
         err2 = np.sum((s["root_pos"][:, :2] - self.target_now()) ** 2, axis=1)
         h = heading(s["root_quat"])
         u = np.cos(h) * s["root_lin_vel"][:, 0] + np.sin(h) * s["root_lin_vel"][:, 1]
@@ -483,6 +506,7 @@ class AmpHumans:
             "energy": -0.0005 * self.bodies.joint_power(),
             "direction": np.exp(np.minimum(0.0, u) / 1.8) - 1.0,
             "path_error": np.sqrt(err2),
+            "stance": -np.maximum(0.0, np.abs(self.stance) - STANCE_FREE_M),
         }
 
     def contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -94,6 +94,13 @@ class NavConfig:
             ``info["reward/path_progress"]``). 0 (default) = the paper's reward, whose tracking term
             follows targets replanned from the body every ``amp_replan_seconds`` and so does not pay for
             reaching the goal (docs/pedestrians.md, "Run 26").
+        amp_stance_reward: ``human_model="amp"``: weight of a stance term added to the pedestrians' task
+            reward: minus the excess over ``amp_humans.STANCE_FREE_M`` (0.1 m) of the absolute running mean
+            (time constant ``amp_humans.STANCE_TAU_S``, 1 s) of the right foot's fore-aft lead over the left
+            foot in the body's heading frame, in metres (``info["reward/stance"]``, logged whatever the
+            weight). Walking alternates the feet, so the mean stays near 0 (the reference clips: 0.067 m on
+            average); a split stance (one foot kept ahead, docs/pedestrians.md, "Where the realism gap
+            lies") holds it at about 0.5 m. 0 (default) = the paper's reward.
         time_limit: episode length (s); ``None`` = the scene's own limit.
         goal_tolerance: a robot reaches its goal when closer than this (m); ``None`` = robot radius
             (CrowdNav's rule, as the paper's reward).
@@ -164,6 +171,7 @@ class NavConfig:
     physics_substeps: int = 2
     amp_replan_seconds: float = 2.0
     amp_progress_reward: float = 0.0
+    amp_stance_reward: float = 0.0
     time_limit: float | None = None
     goal_tolerance: float | None = None
     min_goal_distance: float = 3.0
@@ -213,6 +221,9 @@ class NavConfig:
         if (isinstance(self.amp_progress_reward, bool) or not isinstance(self.amp_progress_reward, int | float)
                 or not math.isfinite(self.amp_progress_reward) or self.amp_progress_reward < 0):
             raise bad("amp_progress_reward", "a finite number >= 0")
+        if (isinstance(self.amp_stance_reward, bool) or not isinstance(self.amp_stance_reward, int | float)
+                or not math.isfinite(self.amp_stance_reward) or self.amp_stance_reward < 0):
+            raise bad("amp_stance_reward", "a finite number >= 0")
         if self.crowd_model not in CROWD_MODELS:
             raise bad("crowd_model", "'sfm', 'orca', 'orca_rvo2', 'diffusion' or 'replay'")
         self._validate_replay()

@@ -69,6 +69,7 @@ def stats_from_counters(counters: Sequence[dict[str, Any]], dt: float) -> dict[s
         "robot_contact_share": s["robot_contact_steps"] / n,
         "map_contact_share": s["map_contact_steps"] / n,
         "path_error_m": s["path_error_sum"] / n,
+        "stance_split_m": s["stance_sum"] / n,
         "robot_episodes": s["robot_episodes"],
     }
     if s["robot_episodes"]:
@@ -176,7 +177,7 @@ class NavAmpVecEnv:
     def reset_stats(self) -> None:
         """Zero the counters of :meth:`stats`."""
         self._stats = {"pedestrian_steps": 0, "falls": 0, "agent_contact_steps": 0, "robot_contact_steps": 0,
-                       "map_contact_steps": 0, "path_error_sum": 0.0, "robot_episodes": 0, "robot_goals": 0,
+                       "map_contact_steps": 0, "path_error_sum": 0.0, "stance_sum": 0.0, "robot_episodes": 0, "robot_goals": 0,
                        "robot_collisions": 0}
 
     def counters(self) -> dict[str, Any]:
@@ -233,6 +234,7 @@ class NavAmpVecEnv:
         terminated = np.zeros(E, dtype=bool)
         truncated = np.zeros(E, dtype=bool)
         amp_obs = np.zeros((E, self.amp_obs_dim), dtype=np.float32)
+        split = np.zeros(E)  # |running mean of the feet's fore-aft split| (m) after the step, for the training log
         final_obs = self._obs.copy()
         s = self._stats
         learn = self.robot_learner is not None
@@ -257,6 +259,8 @@ class NavAmpVecEnv:
             win[:, -1] = feats
             self._window[rows] = win
             amp_obs[rows] = win.reshape(self.n_humans, -1)
+            split[rows] = np.abs(env.amp.stance)
+            s["stance_sum"] += float(split[rows].sum())
             h_term = np.array([bool(term.get(h, False)) for h in self.humans])
             h_trunc = np.array([bool(trunc.get(h, False)) for h in self.humans])
             reward[rows] = [float(rew.get(h, 0.0)) for h in self.humans]
@@ -290,7 +294,7 @@ class NavAmpVecEnv:
                 self._obs[rows] = new_obs
         if learn:
             self._tick = (self._tick + 1) % self._repeat
-        info_out: dict[str, Any] = {"amp_obs": amp_obs}
+        info_out: dict[str, Any] = {"amp_obs": amp_obs, "log/stance_split_m": split}
         if (terminated | truncated).any():
             info_out["final_obs"] = final_obs
         return self._obs.copy(), reward, terminated, truncated, info_out

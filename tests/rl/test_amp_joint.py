@@ -29,6 +29,10 @@ def test_vec_env_follows_the_amp_learner_protocol(vec):
     obs2, rew, term, trunc, info = vec.step(np.zeros((4, ACTION_DIM), np.float32))
     assert obs2.shape == obs.shape and rew.shape == (4,) and term.dtype == bool and trunc.dtype == bool
     assert info["amp_obs"].shape == (4, vec.amp_obs_dim) and np.isfinite(info["amp_obs"]).all()
+    # each row's |running mean of its feet's fore-aft split| (the stance term's input, for the training log)
+    split = info["log/stance_split_m"]
+    assert split.shape == (4,) and (split >= 0).all()
+    np.testing.assert_allclose(split, np.concatenate([np.abs(e.amp.stance) for e in vec.envs]))
     # the window holds two frames: the newest one differs from the first (the bodies moved)
     w = info["amp_obs"].reshape(4, 2, FEATURE_DIM)
     assert not np.allclose(w[:, 0], w[:, 1])
@@ -79,6 +83,8 @@ def test_training_from_the_shipped_checkpoint_updates_policy_and_discriminator_a
     for line in lines:  # the discriminator trains, and its style reward is part of every iteration's reward
         assert line["losses/disc"] > 0 and line["rewards/style"] > 0
         assert line["rewards/total"] == pytest.approx(line["rewards/style"] + 0.5 * line["rewards/task"], rel=1e-3)
+        assert 0.0 < line["env/stance_split_m"] < 1.0  # the rollout's mean |split| of the env's info["log/..."]
+    assert 0.0 < first["train_stats"]["stance_split_m"] < 1.0
     from navzoo.agents.amp.checkpoint import load_policy
     from navzoo.agents.amp.pedestrian_policy import default_policy_dir
 

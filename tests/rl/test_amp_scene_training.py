@@ -47,11 +47,12 @@ def test_each_worker_runs_its_scene_exactly_as_one_process_would():
 
 def test_counters_add_up_to_the_rates():
     a = {"pedestrian_steps": 30, "falls": 1, "agent_contact_steps": 3, "robot_contact_steps": 0,
-         "map_contact_steps": 6, "path_error_sum": 3.0, "robot_episodes": 0, "robot_goals": 0, "robot_collisions": 0}
-    b = {**a, "pedestrian_steps": 90, "falls": 0, "map_contact_steps": 0, "path_error_sum": 9.0}
+         "map_contact_steps": 6, "path_error_sum": 3.0, "stance_sum": 6.0, "robot_episodes": 0, "robot_goals": 0, "robot_collisions": 0}
+    b = {**a, "pedestrian_steps": 90, "falls": 0, "map_contact_steps": 0, "path_error_sum": 9.0, "stance_sum": 30.0}
     s = stats_from_counters([a, b], 1.0 / 30.0)
     assert s["pedestrian_steps"] == 120 and s["falls_per_pedestrian_minute"] == pytest.approx(1 / (120 / 30 / 60))
     assert s["map_contact_share"] == pytest.approx(6 / 120) and s["path_error_m"] == pytest.approx(0.1)
+    assert s["stance_split_m"] == pytest.approx(36 / 120)
 
 
 def test_bad_scenes_and_options_are_rejected(tmp_path):

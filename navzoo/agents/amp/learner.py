@@ -459,7 +459,9 @@ class AmpLearner:
     def collect(self, steps: int) -> dict[str, float]:
         """Roll the current policy out for ``steps`` steps of every env; keeps it for :meth:`update`.
 
-        Returns episode statistics of the episodes that ended during the rollout.
+        Returns episode statistics of the episodes that ended during the rollout, and ``env/NAME``: the mean
+        over the rollout of every per-row ``info["log/NAME"]`` (E,) the env reports (e.g. the navzoo scene
+        env's ``log/stance_split_m``).
         """
         if steps <= 0:
             raise ValueError(f"steps must be positive, got {steps}")
@@ -476,6 +478,7 @@ class AmpLearner:
         amp_buf = torch.empty((T, E, self.amp_obs_dim), device=dev)
         finals: list[tuple[int, torch.Tensor, torch.Tensor]] = []
         self._finished = []
+        logged: dict[str, float] = {}
         std = self.actor.log_std.exp()
         for t in range(T):
             obs = torch.as_tensor(self._obs, device=dev)
@@ -493,6 +496,10 @@ class AmpLearner:
             if "amp_obs" not in info:
                 raise ValueError("env.step must return info['amp_obs'] (E, amp_obs_dim)")
             amp = _as_array("info['amp_obs']", info["amp_obs"], (E, self.amp_obs_dim))
+            for key in info:
+                if key.startswith("log/"):
+                    val = _as_array(f"info[{key!r}]", info[key], (E,), np.float64)
+                    logged[key] = logged.get(key, 0.0) + float(val.mean()) / T
             trunc_only = truncated & ~terminated
             if trunc_only.any():
                 if info.get("final_obs") is None:
@@ -528,6 +535,7 @@ class AmpLearner:
             torch.as_tensor(self._obs, device=dev),
         )
         out = {"episode/count": float(len(self._finished))}
+        out |= {"env/" + key[4:]: v for key, v in logged.items()}
         if self._finished:
             rets, lens = zip(*self._finished, strict=True)
             out["episode/task_return"] = float(np.mean(rets))
