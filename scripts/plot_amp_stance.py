@@ -1,9 +1,9 @@
 """Plot the feet's split during scene training runs (``env/stance_split_m`` of metrics.jsonl.gz) next to the
 clips' level and the stance term's free band:
 
-    python scripts/plot_amp_stance.py --run "run 33 (w 2)=docs/results/amp_run33_34_stance/run33_metrics.jsonl.gz" \\
-        --run "run 34 (w 0.5)=docs/results/amp_run33_34_stance/run34_metrics.jsonl.gz" \\
-        --run "amp_bc run 20 (w 0)=docs/results/amp_bc_run20_scenes_device/metrics.jsonl.gz" \\
+    python scripts/plot_amp_stance.py --run "run 33 (w 2, lr 1e-4)=docs/results/amp_run33_34_stance/run33_metrics.jsonl.gz" \\
+        --run "run 34 (w 0.5, lr 5e-5)=docs/results/amp_run33_34_stance/run34_metrics.jsonl.gz" \\
+        --run "amp_bc run 20 (w 0, cloned lineage)=docs/results/amp_bc_run20_scenes_device/metrics.jsonl.gz" \\
         --clips docs/results/amp_stance_split_vm.json --out docs/img/amp_stance_training.png
 """
 

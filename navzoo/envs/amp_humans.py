@@ -160,9 +160,9 @@ YIELD_HOLD_S = 0.0
 # penalises: about a gait cycle, so a walking gait's alternation averages out (a 1.1 s stride of +-0.3 m
 # leaves about +-0.05 m) while a foot kept ahead does not.
 STANCE_TAU_S = 1.0
-# ... and the running mean's free band (m): the reference clips' own gait leaves |mean| 0.067 m on average
-# (90th percentile 0.093 m, over the clips after their first second), so only the excess over this is charged
-# and a normal stride costs nothing.
+# ... and the running mean's free band (m): the reference clips' own gait leaves |mean| at 0.069 m on average
+# over their frames after each clip's first second (24 % of those frames above 0.1 m; scripts/amp_stance_split.py),
+# so only the excess over this is charged and a normal stride costs little.
 STANCE_FREE_M = 0.1
 
 
