@@ -98,7 +98,7 @@ class NavConfig:
             reward: minus the excess over ``amp_humans.STANCE_FREE_M`` (0.1 m) of the absolute running mean
             (time constant ``amp_humans.STANCE_TAU_S``, 1 s) of the right foot's fore-aft lead over the left
             foot in the body's heading frame, in metres (``info["reward/stance"]``, logged whatever the
-            weight). Walking alternates the feet, so the mean stays near 0 (the reference clips: 0.067 m on
+            weight). Walking alternates the feet, so the mean stays near 0 (the reference clips: 0.069 m on
             average); a split stance (one foot kept ahead, docs/pedestrians.md, "Where the realism gap
             lies") holds it at about 0.5 m. 0 (default) = the paper's reward.
         time_limit: episode length (s); ``None`` = the scene's own limit.
