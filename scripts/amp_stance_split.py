@@ -2,8 +2,8 @@
 
 Both trained lineages walk with one foot kept ahead of the other (docs/pedestrians.md, "Where the realism gap
 lies"). The optional stance term of the task reward (``NavConfig.amp_stance_reward``) charges the running mean
-(time constant ``amp_humans.STANCE_TAU_S``, 1 s) of the right foot's lead over the left along the heading
-(``amp_humans.foot_split``). This script measures that split for exported policies walking the following
+(time constant ``features.STANCE_TAU_S``, 1 s) of the right foot's lead over the left along the heading
+(``features.foot_split``). This script measures that split for exported policies walking the following
 protocol's scenes on social-force targets, and for the clips themselves:
 
     python scripts/amp_stance_split.py --source shipped=policies/amp_pedestrian --source s1=DIR \\
@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from navzoo.benchmark.pedestrians import _make
-from navzoo.envs.amp_humans import CONTROL_HZ, STANCE_FREE_M, STANCE_TAU_S, foot_split
+from navzoo.agents.amp.features import STANCE_FREE_M, STANCE_TAU_S, foot_split
+from navzoo.envs.amp_humans import CONTROL_HZ
 
 
 def run_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str, min_speed: float,

@@ -20,7 +20,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from navzoo.envs.amp_humans import STANCE_FREE_M  # noqa: E402
+from navzoo.agents.amp.features import STANCE_FREE_M  # noqa: E402
 
 
 def load(path: str) -> dict[str, np.ndarray]:

@@ -24,11 +24,14 @@ import pybullet as p
 
 from navzoo.agents.amp.features import (
     FEATURE_DIM,
-    KEY_BODY_NAMES,
     N_RAYS,
+    STANCE_FREE_M,  # noqa: F401  (re-exported: the stance term's constants and foot_split live in features)
+    STANCE_TAU_S,
+    foot_split,
     heading,
     obstacle_observation,
     policy_observation,
+    stance_penalty,
 )
 from navzoo.agents.amp.sim import ACTION_DIM, PhysicsHumanoids, actions_to_targets
 from navzoo.agents.orca import OrcaParams, orca_velocities
@@ -156,22 +159,6 @@ TARGET_SPEED_CAP = 0.0
 # seed 1, more timeouts in the open scenes, the home and doorway no better; scripts/device_yield_hold_ablation.sh,
 # docs/pedestrians.md).
 YIELD_HOLD_S = 0.0
-# Time constant (s) of the running mean of the feet's fore-aft split that NavConfig.amp_stance_reward
-# penalises: about a gait cycle, so a walking gait's alternation averages out (a 1.1 s stride of +-0.3 m
-# leaves about +-0.05 m) while a foot kept ahead does not.
-STANCE_TAU_S = 1.0
-# ... and the running mean's free band (m): the reference clips' own gait leaves |mean| at 0.069 m on average
-# over their frames after each clip's first second (24 % of those frames above 0.1 m; scripts/amp_stance_split.py),
-# so only the excess over this is charged and a normal stride costs little.
-STANCE_FREE_M = 0.1
-
-
-def foot_split(state: dict[str, np.ndarray]) -> np.ndarray:
-    """(H,) the right foot's lead over the left foot along each body's heading (m): positive when the right
-    foot is ahead. ``state`` is :meth:`PhysicsHumanoids.read_state` (``key_pos`` in ``KEY_BODY_NAMES`` order)."""
-    h = heading(state["root_quat"])
-    d = state["key_pos"][:, KEY_BODY_NAMES.index("right_foot"), :2] - state["key_pos"][:, KEY_BODY_NAMES.index("left_foot"), :2]
-    return np.cos(h) * d[:, 0] + np.sin(h) * d[:, 1]
 
 
 def limit_turn(v_prev: np.ndarray, v_new: np.ndarray, max_angle: float, moving: float = 0.1,
@@ -506,7 +493,7 @@ class AmpHumans:
             "energy": -0.0005 * self.bodies.joint_power(),
             "direction": np.exp(np.minimum(0.0, u) / 1.8) - 1.0,
             "path_error": np.sqrt(err2),
-            "stance": -np.maximum(0.0, np.abs(self.stance) - STANCE_FREE_M),
+            "stance": stance_penalty(self.stance),
         }
 
     def contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

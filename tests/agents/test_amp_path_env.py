@@ -47,6 +47,35 @@ def test_dims_rewards_and_auto_reset(reference):
     env.close()
 
 
+def test_the_stance_term_charges_the_running_mean_of_the_feet_split_and_is_logged_at_any_weight(reference):
+    from navzoo.agents.amp.features import STANCE_FREE_M, STANCE_TAU_S, foot_split, stance_penalty
+
+    envs = [AmpPathEnv(2, reference, PathTaskConfig(rsi_prob=1.0, stance_reward=w), seed=3) for w in (0.0, 1.5)]
+    for e in envs:
+        e.reset(seed=3)
+    mean = np.zeros(2)
+    acts = np.zeros((2, 28))
+    acts[:, 0] = 0.6  # a fixed, one-sided joint target
+    checked = 0
+    for _ in range(45):
+        (_, r0, t0, u0, i0), (_, r1, t1, u1, i1) = (e.step(acts) for e in envs)
+        mean += (1.0 / (30 * STANCE_TAU_S)) * (foot_split(envs[1].bodies.read_state()) - mean)
+        if (t0 | u0 | t1 | u1).any():
+            break
+        np.testing.assert_array_equal(i0["reward/stance"], i1["reward/stance"])  # the same bodies: only the reward differs
+        np.testing.assert_allclose(r1, r0 + 1.5 * i1["reward/stance"], atol=1e-5)
+        np.testing.assert_allclose(i1["log/stance_split_m"], np.abs(mean), atol=1e-9)
+        np.testing.assert_allclose(i1["reward/stance"], -np.maximum(0.0, np.abs(mean) - STANCE_FREE_M), atol=1e-9)
+        checked += 1
+    assert checked >= 10 and (np.abs(mean) > 0.001).all()  # the running mean moves with the feet
+    np.testing.assert_allclose(stance_penalty(np.array([0.05, -0.3, 0.1])), [0.0, -0.2, 0.0])
+    for e in envs:
+        e.close()
+    for bad in (-1.0, float("nan"), True):
+        with pytest.raises(ValueError, match="stance_reward"):
+            PathTaskConfig(stance_reward=bad)
+
+
 def test_paths_start_at_the_body_and_move_at_the_commanded_speeds(reference):
     cfg = PathTaskConfig(stage=1, speed_range=(1.0, 1.0))
     env = AmpPathEnv(2, reference, cfg, seed=3)
@@ -99,6 +128,8 @@ def test_train_entry_point_checkpoints_and_resumes(tmp_path):
     r2 = json.loads(second.stdout.strip().splitlines()[-1])
     assert r2["resumed_from"] is not None and r2["global_step"] >= 128
     assert (tmp_path / "policy" / "policy.pt").is_file() and (tmp_path / "metrics.jsonl").is_file()
+    rows = [json.loads(x) for x in (tmp_path / "metrics.jsonl").read_text().splitlines()]
+    assert all(0.0 <= row["env/stance_split_m"] < 1.5 for row in rows)  # the stance, logged at weight 0 too
     # Policy snapshots: the branch point (iteration 2) and every 2nd iteration after it; all checkpoints kept.
     assert r1["iteration"] == 2 and r2["iteration"] == 4
     assert sorted(p.name for p in (tmp_path / "snapshots").iterdir()) == ["policy_00000002", "policy_00000004"]

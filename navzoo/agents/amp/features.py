@@ -97,6 +97,29 @@ _EZ = np.array([0.0, 0.0, 1.0])
 
 
 
+# The stance (NavConfig.amp_stance_reward, PathTaskConfig.stance_reward): the running mean, time constant
+# STANCE_TAU_S (about a gait cycle, so a walking gait's alternation averages out: a 1.1 s stride of +-0.3 m leaves
+# about +-0.05 m while a foot kept ahead does not), of foot_split is charged past a free band of STANCE_FREE_M: the
+# reference clips' own gait leaves |mean| at 0.069 m on average over their frames after each clip's first second
+# (24 % of those frames above 0.1 m; scripts/amp_stance_split.py), so a normal stride costs little.
+STANCE_TAU_S = 1.0
+STANCE_FREE_M = 0.1
+
+
+def foot_split(state: dict[str, np.ndarray]) -> np.ndarray:
+    """(N,) the right foot's lead over the left foot along each body's heading (m): positive when the right
+    foot is ahead. ``state`` is a simulator state dict (``root_quat``, ``key_pos`` in ``KEY_BODY_NAMES`` order)."""
+    h = heading(state["root_quat"])
+    key = state["key_pos"]
+    d = key[:, KEY_BODY_NAMES.index("right_foot"), :2] - key[:, KEY_BODY_NAMES.index("left_foot"), :2]
+    return np.cos(h) * d[:, 0] + np.sin(h) * d[:, 1]
+
+
+def stance_penalty(running_mean: np.ndarray) -> np.ndarray:
+    """The stance term before its weight: minus the excess of ``|running_mean|`` over ``STANCE_FREE_M`` (m)."""
+    return -np.maximum(0.0, np.abs(running_mean) - STANCE_FREE_M)
+
+
 def to_heading_frame(quat: np.ndarray, v: np.ndarray) -> np.ndarray:
     """World vectors ``v`` (N, ..., 3) expressed in the heading frame of base orientations ``quat`` (N, 4)."""
     h = heading(quat)

@@ -32,9 +32,11 @@ from navzoo.agents.amp.features import (
     AMP_VELOCITY_MODES,
     FEATURE_DIM,
     N_RAYS,
+    STANCE_TAU_S,
     PoseHistory,
     amp_features,
     finite_difference_velocities,
+    foot_split,
     heading,
     obstacle_observation,
     policy_observation,
@@ -42,6 +44,7 @@ from navzoo.agents.amp.features import (
     quat_rotate,
     reference_features,
     reference_state_dict,
+    stance_penalty,
     yaw_quat,
 )
 from navzoo.agents.amp.sim import ACTION_DIM, GROUND_HALF_SIZE, PhysicsHumanoids, actions_to_targets
@@ -75,6 +78,10 @@ class PathTaskConfig:
     alpha_p: float = 2.0
     alpha_e: float = 0.0005
     alpha_d: float = 1.8
+    # weight of the stance term added to the task reward (features.stance_penalty of the 1 s running mean of
+    # features.foot_split, as NavConfig.amp_stance_reward in navzoo scenes; 0 = the paper's reward). Whatever the
+    # weight, info carries "reward/stance" and "log/stance_split_m" (the running mean's absolute value)
+    stance_reward: float = 0.0
     pd_mode: str = "motor"
     physics_hz: int = 120
     control_hz: int = 30
@@ -126,6 +133,9 @@ class PathTaskConfig:
         if self.amp_velocity not in AMP_VELOCITY_MODES:
             raise ValueError(f"PathTaskConfig.amp_velocity must be one of {AMP_VELOCITY_MODES}, "
                              f"got {self.amp_velocity!r}")
+        w = self.stance_reward
+        if isinstance(w, bool) or not isinstance(w, int | float) or not np.isfinite(w) or w < 0:
+            raise ValueError(f"PathTaskConfig.stance_reward must be a finite number >= 0, got {w!r}")
         span = self.amp_velocity_span
         if isinstance(span, bool) or not isinstance(span, int | np.integer) or span < 1:
             raise ValueError(f"PathTaskConfig.amp_velocity_span must be an integer >= 1, got {span!r}")
@@ -178,6 +188,7 @@ class AmpPathEnv:
         self.t = np.zeros(self.num_envs, dtype=int)
         self._clock = 0  # control steps since construction (replan_sync)
         self._window = np.zeros((self.num_envs, self.cfg.amp_window, FEATURE_DIM))
+        self.stance = np.zeros(self.num_envs)  # running mean of features.foot_split (STANCE_TAU_S), per humanoid
         # poses of the last amp_velocity_span control steps (the discriminator's finite-difference velocities)
         self._history = PoseHistory(self.num_envs, self.cfg.amp_velocity_span)
         # stage 3 state
@@ -359,6 +370,7 @@ class AmpPathEnv:
             self.paths[i] = self._make_path(state["root_pos"][i, :2], head[k], speeds[k])
             self._window[i] = feats[k]
         self.t[idx] = 0
+        self.stance[idx] = 0.0
         if self.cfg.stage == 3:
             self._reset_stage3(idx, state)
 
@@ -508,7 +520,10 @@ class AmpPathEnv:
         r_tau = np.exp(-cfg.alpha_p * err2)
         r_e = -cfg.alpha_e * self.bodies.joint_power()
         r_d = np.exp(np.minimum(0.0, u) / cfg.alpha_d) - 1.0
-        reward = r_tau + r_e + r_d
+        self.stance += min(1.0, self.dt / STANCE_TAU_S) * (foot_split(state) - self.stance)
+        r_s = stance_penalty(self.stance)
+        reward = r_tau + r_e + r_d + cfg.stance_reward * r_s
+        split = np.abs(self.stance)
         if cfg.amp_velocity == "finite_difference":
             feats = amp_features(self._history.velocities(state, self.dt))
         else:
@@ -524,7 +539,7 @@ class AmpPathEnv:
         obs = self._observe(state)
         info: dict[str, Any] = {
             "amp_obs": amp_obs, "reward/track": r_tau, "reward/energy": r_e, "reward/direction": r_d,
-            "path_error": np.sqrt(err2), "fallen": fallen,
+            "reward/stance": r_s, "log/stance_split_m": split, "path_error": np.sqrt(err2), "fallen": fallen,
         }
         done = terminated | truncated
         if done.any():

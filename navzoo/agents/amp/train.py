@@ -83,6 +83,9 @@ class TrainArgs:
     disc_weight_decay: float = 1e-4
     # weight of the mirror-symmetry loss on the actor (AmpConfig.mirror_coef; 0 = off)
     mirror_coef: float = 0.0
+    # weight of the stance term in the task reward (PathTaskConfig.stance_reward; 0 = the paper's reward); the
+    # training log's env/stance_split_m shows the stance whatever the weight
+    stance_reward: float = 0.0
     # weight of the task reward next to the style reward (AmpConfig.task_weight; the paper's r = r_amp + 0.5 r_task)
     # and the actor's learning rate (AmpConfig.actor_lr); a resumed checkpoint takes the values given here
     task_weight: float = 0.5
@@ -133,7 +136,7 @@ def run(args: TrainArgs) -> dict[str, Any]:
     task = PathTaskConfig(stage=args.stage, pd_mode=args.pd_mode, obstacle_obs=bool(args.obstacles),
                           boxes_per_patch=4 if args.obstacles else 0, pair_patches=bool(args.obstacles),
                           amp_velocity=args.amp_velocity, amp_velocity_span=args.amp_velocity_span,
-                          door_prob=args.door_prob,
+                          door_prob=args.door_prob, stance_reward=args.stance_reward,
                           replan_sync=bool(args.replan_sync))
     make_reference = grounded_locomotion_reference if args.ground_reference else locomotion_reference
     if args.workers > 1:
