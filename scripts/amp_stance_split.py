@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from navzoo.benchmark.pedestrians import _make
 from navzoo.agents.amp.features import STANCE_FREE_M, STANCE_TAU_S, foot_split
+from navzoo.benchmark.pedestrians import _make
 from navzoo.envs.amp_humans import CONTROL_HZ
 
 
