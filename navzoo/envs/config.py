@@ -97,8 +97,8 @@ class NavConfig:
         amp_stance_reward: ``human_model="amp"``: weight of a stance term added to the pedestrians' task
             reward: minus the excess over ``navzoo.agents.amp.features.STANCE_FREE_M`` (0.1 m) of the
             absolute running mean (time constant ``features.STANCE_TAU_S``, 1 s) of the right foot's fore-aft
-            lead over the left foot in the body's heading frame, in metres (``info["reward/stance"]``, logged whatever the
-            weight). Walking alternates the feet, so the mean stays near 0 (the reference clips: 0.069 m on
+            lead over the left foot in the body's heading frame, in metres (``info["reward/stance"]``, logged
+            whatever the weight; the mean starts at 0 at each reset). Walking alternates the feet, so the mean stays near 0 (the reference clips: 0.069 m on
             average); a split stance (one foot kept ahead, docs/pedestrians.md, "Where the realism gap
             lies") holds it at about 0.5 m. 0 (default) = the paper's reward.
         time_limit: episode length (s); ``None`` = the scene's own limit.

@@ -96,7 +96,6 @@ _EY = np.array([0.0, 1.0, 0.0])
 _EZ = np.array([0.0, 0.0, 1.0])
 
 
-
 # The stance (NavConfig.amp_stance_reward, PathTaskConfig.stance_reward): the running mean, time constant
 # STANCE_TAU_S (about a gait cycle, so a walking gait's alternation averages out: a 1.1 s stride of +-0.3 m leaves
 # about +-0.05 m while a foot kept ahead does not), of foot_split is charged past a free band of STANCE_FREE_M: the

@@ -80,7 +80,8 @@ class PathTaskConfig:
     alpha_d: float = 1.8
     # weight of the stance term added to the task reward (features.stance_penalty of the 1 s running mean of
     # features.foot_split, as NavConfig.amp_stance_reward in navzoo scenes; 0 = the paper's reward). Whatever the
-    # weight, info carries "reward/stance" and "log/stance_split_m" (the running mean's absolute value)
+    # weight, info carries "reward/stance" and "log/stance_split_m" (the running mean's absolute value; the mean
+    # starts at 0 with each episode)
     stance_reward: float = 0.0
     pd_mode: str = "motor"
     physics_hz: int = 120
