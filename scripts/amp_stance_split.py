@@ -54,24 +54,19 @@ def run_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str, mi
 
 def clip_split(lib) -> dict[str, np.ndarray]:
     """The same samples for every clip of a motion library (its frames, after each clip's first second)."""
-    from navzoo.agents.motion_lib import humanoid_fk
-    from navzoo.agents.quat import heading
+    from scipy.signal import lfilter
 
-    right, left = 5, 11  # link indices of the feet (navzoo.agents.amp.features.KEY_LINKS)
+    from navzoo.agents.amp.features import KEY_LINKS
+    from navzoo.agents.motion_lib import humanoid_fk
+
     split, mean = [], []
     a = 1.0 / (lib.fps * STANCE_TAU_S)
     skip = int(round(lib.fps))
     for c in range(len(lib)):
         fr = lib.frames(c)
         pos, _ = humanoid_fk(fr["root_pos"], fr["root_quat"], fr["sph"], fr["rev"])
-        h = heading(fr["root_quat"])
-        d = pos[:, right, :2] - pos[:, left, :2]
-        s = np.cos(h) * d[:, 0] + np.sin(h) * d[:, 1]
-        m = np.zeros_like(s)
-        acc = 0.0
-        for i, x in enumerate(s):
-            acc += a * (x - acc)
-            m[i] = acc
+        s = foot_split({"root_quat": fr["root_quat"], "key_pos": pos[:, list(KEY_LINKS)]})
+        m = lfilter([a], [1.0, a - 1.0], s)  # the running mean m += a (s - m), from 0, as the simulator's
         split.append(s[skip:])
         mean.append(m[skip:])
     return {"split": np.concatenate(split), "mean": np.concatenate(mean)}
