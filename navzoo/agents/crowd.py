@@ -71,6 +71,8 @@ class CrowdPolicy:
             pref = env.diffusion.preferred_velocities(env)
             if env.turn_taking is not None:
                 pref = env.turn_taking.apply(env.sim_time, pref)
+            if env.door_turns is not None:
+                pref = env.door_turns.apply(pos, pref, env.v_pref[h])
         else:
             # Toward the next A* waypoint, with turn-taking; CrowdNav's people slow down within 1 m of the goal.
             pref = env.human_preferred_velocity(slow_radius=1.0 if self.model == "orca_rvo2" else 0.5)

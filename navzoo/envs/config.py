@@ -59,6 +59,10 @@ class NavConfig:
             steps back and waits (:mod:`navzoo.agents.yielding`), so opposite flows through a door
             do not freeze. Works with every crowd model, for kinematic and AMP pedestrians; off in the
             CrowdNav presets, whose pedestrians are RVO2's as published.
+        human_door_turns: door turns in doors that take one person at a time: a pedestrian near the
+            next door of its path asks for it and waits beside it while people come through the other
+            way; those going the same way follow each other through (:mod:`navzoo.agents.door_turns`).
+            Works with every crowd model but the replay, for kinematic and AMP pedestrians.
         human_radius: pedestrians' disc radius for collisions and observations (m).
         human_body_contacts: also count PyBullet contacts between a robot and a humanoid's limbs
             as collisions (a walking humanoid's hands and feet reach up to ~0.1 m beyond a 0.3 m
@@ -158,6 +162,7 @@ class NavConfig:
     replay_start: float = 0.0
     humans_see_robots: bool = True
     human_yielding: bool = True
+    human_door_turns: bool = False
     human_radius: float = 0.3
     human_body_contacts: bool = True
     human_contact_penalty: bool = True
@@ -235,6 +240,8 @@ class NavConfig:
             raise bad("humans_see_robots", "a bool")
         if not isinstance(self.human_yielding, bool):
             raise bad("human_yielding", "a bool")
+        if not isinstance(self.human_door_turns, bool):
+            raise bad("human_door_turns", "a bool")
         if self.human_replan_blocked not in ("amp", "all", "off"):
             raise bad("human_replan_blocked", "'amp', 'all' or 'off'")
         if self.human_at_goal not in ("new_goal", "stop"):

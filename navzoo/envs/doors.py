@@ -52,14 +52,70 @@ def door_axis(grid: OccupancyGrid, centre: np.ndarray, clearance: float) -> np.n
     return np.array([-wall[1], wall[0]])
 
 
+def path_doors(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, half_width: float = DOOR_HALF_WIDTH,
+               max_length: float = DOOR_MAX_LENGTH, two_sided: bool = False,
+               end_margin: float = 0.0) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """The doors that ``path`` (K, 2), walked from ``start``, passes, in the order it passes them.
+
+    A door is a stretch of the path no longer than ``max_length`` where the clearance (distance to the
+    nearest occupied cell) stays below ``half_width``, with jambs on both sides. Returns, per door, its
+    centre (the narrowest point), its axis (unit, across the door, pointing the way the path crosses it:
+    :func:`door_axis`) and its clearance there (m).
+
+    :func:`door_axis` accepts a stretch along a single straight wall too (its cells lie on both sides of
+    the centre along the wall). ``two_sided`` keeps only passages with an obstacle on either side across
+    the axis, each within ``2 * half_width`` of the centre and together less than ``2 * half_width + 0.1``
+    m apart: a door or a gap between two obstacles, not a wall walked along. ``end_margin`` leaves out
+    doors closer than that to either end of the path (start or goal).
+    """
+    path = np.asarray(path, dtype=np.float64).reshape(-1, 2)
+    line = np.concatenate([np.asarray(start, dtype=np.float64).reshape(1, 2), path])
+    if len(line) < 2:
+        return []
+    pts = resample_polyline(line, _STEP)
+    d = grid.distance_at(pts)
+    narrow = d < half_width
+    out = []
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], narrow.astype(int), [0]])))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):  # narrow runs pts[a:b]
+        if (b - a) * _STEP > max_length:
+            continue
+        m = a + int(np.argmin(d[a:b]))
+        axis = door_axis(grid, pts[m], float(d[m]))
+        if axis is None:
+            continue
+        heading = pts[min(m + 4, len(pts) - 1)] - pts[max(m - 4, 0)]
+        axis = axis if heading @ axis >= 0 else -axis
+        centre = pts[m]
+        if end_margin > 0 and min(np.linalg.norm(centre - line[0]), np.linalg.norm(centre - line[-1])) < end_margin:
+            continue
+        if two_sided and _passage_width(grid, centre, axis, 2.0 * half_width) >= 2.0 * half_width + 0.1:
+            continue
+        out.append((centre.copy(), axis, float(d[m])))
+    return out
+
+
+def _passage_width(grid: OccupancyGrid, centre: np.ndarray, axis: np.ndarray, reach: float) -> float:
+    """Free width (m) across ``axis`` at ``centre``: the distance between the first occupied cells on
+    either side within ``reach``; inf when one side has none."""
+    side = np.array([-axis[1], axis[0]])
+    s = np.arange(0.0, reach + 1e-9, 0.5 * grid.resolution)
+    out = 0.0
+    for sgn in (1.0, -1.0):
+        free = grid.is_free(centre[None, :] + sgn * s[:, None] * side[None, :])
+        hit = np.flatnonzero(~free)
+        if not hit.size:
+            return float("inf")
+        out += float(s[hit[0]])
+    return out
+
+
 def door_entries(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, radius: float,
                  half_width: float = DOOR_HALF_WIDTH, max_length: float = DOOR_MAX_LENGTH,
                  reach: float = DOOR_REACH) -> np.ndarray:
     """``path`` (K, 2), walked from ``start``, with its doors crossed on their axes.
 
-    A door is a stretch of the path no longer than ``max_length`` where the clearance (distance to the
-    nearest occupied cell) stays below ``half_width``. Its narrowest point is the centre; the axis is
-    perpendicular to the jambs (:func:`door_axis`). The path points within ``reach`` + 0.25 m of the
+    The doors are those of :func:`path_doors`. The path points within ``reach`` + 0.25 m of a door's
     centre are replaced by ``centre -/+ reach * axis`` around the centre, when both new points keep
     ``radius`` from every wall and the door is not at either end of the path; other doors are left.
     """
@@ -67,28 +123,14 @@ def door_entries(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, radiu
     line = np.concatenate([np.asarray(start, dtype=np.float64).reshape(1, 2), path])
     if len(line) < 2:
         return path
-    pts = resample_polyline(line, _STEP)
-    d = grid.distance_at(pts)
-    narrow = d < half_width
     out = path
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], narrow.astype(int), [0]])))
-    for a, b in zip(edges[::2], edges[1::2], strict=True):  # narrow runs pts[a:b]
-        if (b - a) * _STEP > max_length:
-            continue
-        m = a + int(np.argmin(d[a:b]))
-        centre = pts[m]
+    for centre, axis, clearance in path_doors(path, start, grid, half_width, max_length):
         if np.linalg.norm(centre - line[0]) < reach + 0.25 or np.linalg.norm(centre - line[-1]) < reach + 0.25:
             continue
-        axis = door_axis(grid, centre, float(d[m]))
-        if axis is None:
-            continue
-        heading = pts[min(m + 4, len(pts) - 1)] - pts[max(m - 4, 0)]
-        if heading @ axis < 0:
-            axis = -axis
         entry, exit_ = centre - reach * axis, centre + reach * axis
         probe = np.linspace(0.0, 1.0, 15)[:, None]
         across = np.concatenate([entry + probe * (centre - entry), centre + probe * (exit_ - centre)])
-        if grid.distance_at(across).min() < min(radius, float(d[m])) - 1e-9 or \
+        if grid.distance_at(across).min() < min(radius, clearance) - 1e-9 or \
                 grid.distance_at(np.stack([entry, exit_])).min() < radius:
             continue
         keep = np.linalg.norm(out - centre, axis=1) >= reach + 0.25

@@ -14,6 +14,7 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from navzoo import sim
+from navzoo.agents.door_turns import DoorTurns
 from navzoo.agents.humanoid import HumanoidBodies
 from navzoo.agents.policy import preferred_velocity
 from navzoo.agents.robot import RobotBodies, command_velocity, wrap_angle
@@ -24,7 +25,7 @@ from navzoo.envs.amp_humans import PLAN_MARGIN as AMP_PLAN_MARGIN
 from navzoo.envs.amp_humans import WAYPOINT_LOOKAHEAD, AmpHumans, advance_waypoint
 from navzoo.envs.amp_humans import YIELD_HOLD_S as AMP_YIELD_HOLD_S
 from navzoo.envs.config import NavConfig
-from navzoo.envs.doors import door_entries
+from navzoo.envs.doors import door_entries, path_doors
 from navzoo.envs.fallen import FALLEN_BODY_RADIUS, path_passes
 from navzoo.envs.fallen import footprint_points as fallen_footprint_points
 from navzoo.envs.fallen import stamp as stamp_fallen
@@ -373,6 +374,8 @@ class NavEnv(ParallelEnv):
         # physics pedestrians may hold a yield until the other has passed (amp_humans.YIELD_HOLD_S; 0 = off)
         hold = YieldParams(hold_max=AMP_YIELD_HOLD_S) if cfg.human_model == "amp" else None
         self.turn_taking = TurnTaking(H, hold) if cfg.human_yielding and rp is None else None
+        self.door_turns = DoorTurns(H, self.grid.distance_at) if cfg.human_door_turns and rp is None else None
+        self._door_paths: list[object] = [None] * H
 
         self.robots.reset(self.pos[:R], self.yaw[:R])
         self.robot_subgoals = self.goal[:R].copy()  # what the robots' goal features point at
@@ -389,6 +392,7 @@ class NavEnv(ParallelEnv):
         self.human_map_contact = np.zeros(H, dtype=bool)
         self.human_agent_contact = np.zeros(H, dtype=bool)
         self.human_robot_contact = np.zeros(H, dtype=bool)
+        self._update_door_turns()  # before the first AMP target rollout
         if self.amp is not None:
             self.amp.reset(self.pos[R:], self.yaw[R:])
         else:
@@ -597,10 +601,11 @@ class NavEnv(ParallelEnv):
                 self.sim_time + dt, dt, self.pos[hum], self.vel[hum], self.human_preferred_velocity(yielding=False),
                 active=~self.human_fallen & ~self.arrived[hum],
             )
+        new_doors = self._update_door_turns(self.sim_time + dt)
         if self.amp is not None and hum.size:
             amp_terms = self.amp.task_reward()
             self.amp.after_step(replan=bool(human_reached.any() or new_yields.any() or self._fallen_replanned
-                                            or blocked_replanned))
+                                            or blocked_replanned or new_doors.any()))
             self._fallen_replanned = False
         # After a re-target a pedestrian's distance jumps to its new goal: that step earns the goal
         # reward, not a progress penalty, so its previous distance is taken as the new one.
@@ -905,7 +910,25 @@ class NavEnv(ParallelEnv):
                                   slow_radius=slow_radius)
         if yielding and self.turn_taking is not None:
             pref = self.turn_taking.apply(self.sim_time if t is None else t, pref)
+        if yielding and self.door_turns is not None:
+            pref = self.door_turns.apply(self.pos[h], pref, self.v_pref[h])
         return pref
+
+    def _update_door_turns(self, t: float = 0.0) -> np.ndarray:
+        """``NavConfig.human_door_turns``: the doors of every pedestrian path that changed since the last
+        call, then the door requests and grants at time ``t``; returns (H,) who was granted a door now."""
+        H = self.n_humans
+        if self.door_turns is None or H == 0:
+            return np.zeros(H, dtype=bool)
+        R = self.n_robots
+        for j in range(H):
+            i = R + j
+            if self._door_paths[j] is not self.paths[i]:
+                self._door_paths[j] = self.paths[i]
+                rest = self.paths[i][int(self.wp_index[i]):]
+                self.door_turns.set_route(j, [(c, a) for c, a, _ in path_doors(rest, self.pos[i], self.grid, two_sided=True,
+                                                                                    end_margin=0.7)])
+        return self.door_turns.update(t, self.pos[R:], ~self.arrived[R:] & ~self.human_fallen)
 
     def _avoid_fallen(self, fallen: np.ndarray) -> bool:
         """Stamp the bodies of the pedestrians ``fallen`` (indices among the pedestrians) into the

@@ -1,0 +1,269 @@
+"""Door turns for rule-based crowds: one direction at a time through doors that take one person at a time.
+
+:class:`~navzoo.agents.yielding.TurnTaking` resolves a head-on meeting in a door after it has happened:
+two people stand stuck for ``patience`` seconds, one steps back and waits. In a door crossed from both
+sides all the time (the ``doorway`` scene: 13 people and one 1.0 m door) that costs about five seconds
+per meeting, and people keep walking into the door from both sides, so most trips time out
+(docs/crowd_models.md). People at a real door look first: whoever sees someone coming through waits
+beside the door, and those going the same way follow each other through.
+
+:class:`DoorTurns` adds that convention by editing the preferred velocities a crowd model is given, as
+turn-taking does:
+
+* **doors** are the short narrow passages of the people's A* paths
+  (:func:`navzoo.envs.doors.path_doors`); each person knows the doors of its path in order, and which
+  way it crosses each;
+* a person within ``approach`` of the next door on its path, not yet through it, **asks** for it. The
+  door is **granted** when nobody holds it, or when those who hold it go the same way (people then
+  follow each other through), unless somebody on the other side has waited ``platoon_s`` or longer:
+  then the door changes direction once those inside are through. Requests are served first come,
+  first served;
+* a person who asks and is not granted **waits** at the door's waiting spot on its side
+  (``wait`` from the door's centre along its axis, a step to the waiting person's right so that
+  people coming through pass on its left, moved closer or to the other side where a wall is in the
+  way), until its turn comes;
+* a grant ends when its holder is ``passed`` beyond the door's centre, stops taking part (fell,
+  arrived), gets a new path, or has held it ``grant_max_s`` seconds without getting through (it then
+  asks again, last in the queue), so a person stuck elsewhere does not close a door for good;
+* someone already in a door (within ``throat`` of its centre) holds it, granted or not.
+
+Everything is deterministic and vectorised over people where it matters. Kinematic pedestrians get
+the edited preferred velocity at every step; the target rollouts of AMP pedestrians apply it at the
+rolled-out positions (the grants frozen at the time of the plan: a person who will reach a door that
+is held against it waits there), and a new grant triggers a replan. ``NavConfig.human_door_turns``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["DoorParams", "DoorTurns"]
+
+
+@dataclass(frozen=True)
+class DoorParams:
+    """Parameters of :class:`DoorTurns` (chosen on the ``doorway`` and ``home`` scenes, docs/crowd_models.md).
+
+    Attributes:
+        approach: a person asks for the next door on its path within this distance of its centre (m).
+        wait: the waiting spot's distance from the door's centre along the door's axis (m).
+        side_step: the waiting spot's offset to the waiting person's right (m).
+        passed: a person is through a door once it is this far beyond the centre along its crossing (m).
+        throat: a person within this distance of a door's centre, not yet through, is in the door (m).
+        platoon_s: no new grant the door's current way once somebody on the other side has waited this long (s).
+        grant_max_s: a grant that has not got its holder through within this long ends (s).
+        merge: doors found on different paths whose centres are closer than this are one door (m).
+        spot_clearance: the waiting spot keeps at least this distance from walls (m).
+    """
+
+    approach: float = 2.5
+    wait: float = 1.4
+    side_step: float = 1.0
+    passed: float = 0.5
+    throat: float = 0.6
+    platoon_s: float = 10.0
+    grant_max_s: float = 10.0
+    merge: float = 0.6
+    spot_clearance: float = 0.35
+
+    def __post_init__(self) -> None:
+        for name in ("approach", "wait", "passed", "throat", "platoon_s", "grant_max_s", "merge", "spot_clearance"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"DoorParams.{name} must be a finite number > 0, got {v!r}")
+        if not (isinstance(self.side_step, (int, float)) and math.isfinite(self.side_step) and self.side_step >= 0):
+            raise ValueError(f"DoorParams.side_step must be a finite number >= 0, got {self.side_step!r}")
+        if self.wait >= self.approach:
+            raise ValueError(f"DoorParams.wait ({self.wait}) must be below approach ({self.approach}): people ask "
+                             "for a door before they reach its waiting spot")
+        if self.throat >= self.wait:
+            raise ValueError(f"DoorParams.throat ({self.throat}) must be below wait ({self.wait})")
+
+
+class DoorTurns:
+    """Door requests, grants and waiting spots for ``n`` people (see the module doc).
+
+    Args:
+        n: number of people.
+        distance_at: ``(M, 2) points -> (M,)`` distance to the nearest obstacle (m), e.g.
+            :meth:`navzoo.world.occupancy.OccupancyGrid.distance_at`; places the waiting spots.
+        params: :class:`DoorParams`.
+
+    Per step: :meth:`set_route` for every person whose path changed, then :meth:`update`, then
+    :meth:`apply` on the preferred velocities.
+    """
+
+    def __init__(self, n: int, distance_at, params: DoorParams | None = None) -> None:
+        self.params = params or DoorParams()
+        self.n = int(n)
+        self._distance_at = distance_at
+        self.centres = np.zeros((0, 2))
+        self.axes = np.zeros((0, 2))  # canonical axis of each door
+        self._spots: list[dict[int, np.ndarray]] = []  # per door: {sign of the crossing: waiting spot}
+        self.routes: list[list[tuple[int, int]]] = [[] for _ in range(self.n)]  # (door, +-1 along its axis)
+        self.k = np.zeros(self.n, dtype=int)  # index of each person's next door in its route
+        self.granted = np.full(self.n, -1)  # the door each person holds (-1: none)
+        self.grant_t = np.full(self.n, -np.inf)
+        self.request_t = np.full(self.n, np.inf)  # since when each person has asked (inf: not asking)
+        self._cur = np.full(self.n, -1)  # next door after the last update (-1: none)
+        self._sign = np.zeros(self.n, dtype=int)
+
+    # ------------------------------------------------------------------ doors and routes
+    @property
+    def n_doors(self) -> int:
+        return len(self.centres)
+
+    def door_id(self, centre: np.ndarray, axis: np.ndarray) -> tuple[int, int]:
+        """The door at ``centre`` (registered on first sight) and the sign of a crossing along ``axis``."""
+        centre = np.asarray(centre, dtype=np.float64).reshape(2)
+        axis = np.asarray(axis, dtype=np.float64).reshape(2)
+        if self.n_doors:
+            d = np.linalg.norm(self.centres - centre, axis=1)
+            i = int(np.argmin(d))
+            if d[i] < self.params.merge:
+                return i, 1 if float(axis @ self.axes[i]) >= 0 else -1
+        self.centres = np.concatenate([self.centres, centre[None]])
+        self.axes = np.concatenate([self.axes, axis[None] / max(float(np.linalg.norm(axis)), 1e-12)])
+        self._spots.append({})
+        return self.n_doors - 1, 1
+
+    def set_route(self, j: int, doors: list[tuple[np.ndarray, np.ndarray]]) -> None:
+        """Person ``j``'s new path crosses ``doors`` (centre, axis along the crossing), in this order; any
+        grant or request it had ends."""
+        self.routes[j] = [self.door_id(c, a) for c, a in doors]
+        self.k[j] = 0
+        self._release(np.array([j]))
+
+    def spots(self, door: int, sign: int) -> np.ndarray:
+        """Waiting spots (S, 2) of ``door`` for people crossing it with ``sign``, in queue order. They lie on
+        the side the people come from, out of the door's lane: ``wait`` back from the centre along the
+        axis and ``side_step`` or more to the waiting person's right (so people coming through pass on its
+        left), the queue going on along the wall, then further back, then to the left; only spots
+        ``spot_clearance`` from walls."""
+        spots = self._spots[door]
+        if sign not in spots:
+            p = self.params
+            c, u = self.centres[door], sign * self.axes[door]  # u: the way the waiting person will go
+            right = np.array([u[1], -u[0]])
+            gap = 0.7  # m between queued people
+            cands = [c - along * u + side * lat * right
+                     for side in (1.0, -1.0)
+                     for along in (p.wait, p.wait + gap, p.wait + 2 * gap)
+                     for lat in p.side_step + gap * np.arange(6)]
+            arr = np.array(cands)
+            ok = self._distance_at(arr) >= p.spot_clearance
+            spots[sign] = arr[ok] if ok.any() else (c - p.wait * u)[None]
+        return spots[sign]
+
+    def spot(self, door: int, sign: int, rank: int = 0) -> np.ndarray:
+        """The ``rank``-th waiting spot (2,) of :meth:`spots` (the last one for longer queues)."""
+        s = self.spots(door, sign)
+        return s[min(int(rank), len(s) - 1)]
+
+    # ------------------------------------------------------------------ per step
+    def _release(self, who: np.ndarray) -> None:
+        self.granted[who] = -1
+        self.grant_t[who] = -np.inf
+        self.request_t[who] = np.inf
+
+    def _next_door(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Advance every route past the doors already crossed; (next door or -1, sign, signed distance
+        along the crossing from the centre)."""
+        cur = np.full(self.n, -1)
+        sign = np.zeros(self.n, dtype=int)
+        s = np.full(self.n, -np.inf)
+        for j in range(self.n):
+            route = self.routes[j]
+            while self.k[j] < len(route):
+                d, g = route[self.k[j]]
+                along = float((pos[j] - self.centres[d]) @ self.axes[d]) * g
+                if along > self.params.passed:  # through: next door
+                    if self.granted[j] == d:
+                        self._release(np.array([j]))
+                    self.k[j] += 1
+                    continue
+                cur[j], sign[j], s[j] = d, g, along
+                break
+        return cur, sign, s
+
+    def update(self, t: float, pos: np.ndarray, active: np.ndarray | None = None) -> np.ndarray:
+        """Requests, grants and their ends at time ``t`` for positions ``pos`` (n, 2); ``active`` (n,)
+        bool: who takes part (default everybody). Returns (n,) bool: who was granted a door now."""
+        p = self.params
+        active = np.ones(self.n, dtype=bool) if active is None else np.asarray(active, dtype=bool)
+        pos = np.asarray(pos, dtype=np.float64).reshape(self.n, 2)
+        cur, sign, _ = self._next_door(pos)
+        self._cur, self._sign = cur, sign
+        # grants end when their holder stops taking part, is past the door, or lapses (it then asks anew,
+        # last in the queue, below)
+        gone = (self.granted >= 0) & (~active | (self.granted != cur) | (t - self.grant_t > p.grant_max_s))
+        self._release(np.flatnonzero(gone))
+        dist = np.where(cur >= 0, np.linalg.norm(pos - self.centres[np.maximum(cur, 0)], axis=1), np.inf) \
+            if self.n_doors else np.full(self.n, np.inf)
+        # who asks: within reach of its next door, or already asking (a queue may stretch beyond reach)
+        near = active & (cur >= 0) & ((dist < p.approach) | np.isfinite(self.request_t))
+        self.request_t[~near & (self.granted < 0)] = np.inf
+        asking = near & (self.granted < 0)
+        self.request_t[asking & ~np.isfinite(self.request_t)] = t
+        new = np.zeros(self.n, dtype=bool)
+        inside = asking & (dist < p.throat)
+        self.granted[inside], self.grant_t[inside] = cur[inside], t  # someone in the door holds it
+        new |= inside
+        for d in np.unique(cur[asking & ~inside]):
+            holders = np.flatnonzero(self.granted == d)
+            way = int(sign[holders[0]]) if holders.size else 0
+            queue = np.flatnonzero(asking & ~inside & (cur == d))
+            queue = queue[np.argsort(self.request_t[queue], kind="stable")]
+            for q in queue:
+                other = queue[(sign[queue] != sign[q])]
+                oldest_other = float(self.request_t[other].min()) if other.size else np.inf
+                if way == 0 or (sign[q] == way and t - oldest_other < p.platoon_s):
+                    self.granted[q], self.grant_t[q], way = d, t, int(sign[q])
+                    new[q] = True
+        self.request_t[self.granted >= 0] = np.inf
+        return new
+
+    def waiting(self) -> np.ndarray:
+        """(n,) bool: who asked for a door at the last update and was not granted it."""
+        return np.isfinite(self.request_t) & (self.granted < 0)
+
+    def apply(self, pos: np.ndarray, pref: np.ndarray, v_pref: np.ndarray) -> np.ndarray:
+        """Preferred velocities (n, 2) with the door turns applied at positions ``pos`` (n, 2): a person
+        who waits for its next door, or who is near a door held the other way and does not hold it,
+        walks to the door's waiting spot on its side and stands there; others keep ``pref``.
+
+        ``pos`` may be rolled-out positions (AMP target rollouts): the grants are those of the last
+        :meth:`update`."""
+        if not self.n_doors:
+            return pref
+        p = self.params
+        pos = np.asarray(pos, dtype=np.float64).reshape(self.n, 2)
+        cur, sign = self._cur, self._sign
+        has = cur >= 0
+        c = self.centres[np.maximum(cur, 0)]
+        dist = np.linalg.norm(pos - c, axis=1)
+        along = np.einsum("ij,ij->i", pos - c, self.axes[np.maximum(cur, 0)]) * sign
+        near = has & (dist < p.approach) & (along < p.passed) & (self.granted < 0)
+        held_way = np.zeros(self.n_doors, dtype=int)
+        holders = np.flatnonzero(self.granted >= 0)
+        held_way[self.granted[holders]] = sign[holders]
+        idx = np.maximum(cur, 0)
+        against = (held_way[idx] != 0) & (held_way[idx] != sign)
+        queued = self.waiting() & has
+        wait = (queued | (near & against)) & (dist >= p.throat)
+        if not wait.any():
+            return pref
+        out = np.array(pref, dtype=np.float64, copy=True)
+        for j in np.flatnonzero(wait):
+            d_j, s_j = int(cur[j]), int(sign[j])
+            line = queued & (cur == d_j) & (sign == s_j)
+            # place in the queue: those who asked earlier; one who would join it goes to its end
+            rank = int((line & (self.request_t < self.request_t[j])).sum()) if queued[j] else int(line.sum())
+            to = self.spot(d_j, s_j, rank) - pos[j]
+            d = float(np.linalg.norm(to))
+            speed = float(v_pref[j]) * min(1.0, d / 0.6) if d > 0.1 else 0.0
+            out[j] = to / max(d, 1e-9) * speed
+        return out

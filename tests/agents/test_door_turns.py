@@ -1,0 +1,159 @@
+"""Door turns (navzoo.agents.door_turns): one way at a time, queues, waiting spots, lapses, and the env."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from navzoo.agents.crowd import CrowdPolicy
+from navzoo.agents.door_turns import DoorParams, DoorTurns
+from navzoo.envs.config import NavConfig
+from navzoo.envs.doors import path_doors
+from navzoo.envs.nav_env import NavEnv
+from navzoo.envs.wrappers import FrozenAgents
+from navzoo.world.library import get_scene
+from navzoo.world.occupancy import OccupancyGrid
+
+CENTRE = np.array([0.0, 0.0])
+AXIS = np.array([1.0, 0.0])  # the door in a wall along x = 0; crossing +x is sign +1
+
+
+def _open(points: np.ndarray) -> np.ndarray:
+    return np.full(len(points), 5.0)  # no wall near any waiting spot
+
+
+def _turns(n: int, **kw) -> DoorTurns:
+    dt = DoorTurns(n, _open, DoorParams(**kw))
+    for j in range(n):
+        dt.set_route(j, [])
+    return dt
+
+
+def test_one_way_at_a_time_and_the_same_way_follows():
+    dt = _turns(3)
+    east = [(CENTRE, AXIS)]
+    west = [(CENTRE, -AXIS)]
+    dt.set_route(0, east)
+    dt.set_route(1, east)
+    dt.set_route(2, west)
+    pos = np.array([[-1.8, 0.0], [-2.3, 0.1], [1.9, 0.0]])  # all within reach of the door
+    new = dt.update(0.0, pos)
+    # the first to ask (ties: person order) is granted; the one behind it goes the same way and follows
+    assert dt.granted[0] == 0 and dt.granted[1] == 0 and new[:2].all()
+    assert dt.granted[2] == -1 and dt.waiting()[2]
+    pref = np.array([[1.0, 0.0], [1.0, 0.0], [-1.0, 0.0]])
+    out = dt.apply(pos, pref, np.ones(3))
+    np.testing.assert_allclose(out[:2], pref[:2])  # holders keep their way
+    spot = dt.spot(0, -1)
+    assert spot[0] > 0.5 and abs(spot[1]) >= 1.0 - 1e-9  # the waiter's spot: on its side, out of the lane
+    assert out[2] @ (spot - pos[2]) > 0  # and it walks there
+    # once both are through (0.5 m beyond the centre), the door turns round
+    pos[0], pos[1] = [0.8, 0.0], [0.7, 0.0]
+    dt.update(1.0, pos)
+    assert dt.granted[0] == -1 and dt.granted[1] == -1 and dt.k[0] == 1
+    assert dt.granted[2] == 0
+
+
+def test_waiting_person_stands_still_at_its_spot():
+    dt = _turns(2)
+    dt.set_route(0, [(CENTRE, AXIS)])
+    dt.set_route(1, [(CENTRE, -AXIS)])
+    pos = np.array([[-0.9, 0.0], [2.0, 0.0]])
+    dt.update(0.0, pos)
+    assert dt.waiting()[1]
+    pos[1] = dt.spot(0, -1)
+    out = dt.apply(pos, np.array([[1.0, 0.0], [-1.0, 0.0]]), np.ones(2))
+    np.testing.assert_allclose(out[1], 0.0)
+
+
+def test_the_other_side_gets_the_door_after_platoon_s():
+    dt = _turns(3, platoon_s=2.0)
+    for j in range(2):
+        dt.set_route(j, [(CENTRE, AXIS)])
+    dt.set_route(2, [(CENTRE, -AXIS)])
+    pos = np.array([[-2.0, 0.0], [-2.45, 0.0], [2.0, 0.0]])
+    dt.update(0.0, pos)
+    assert dt.granted[0] == 0 and dt.waiting()[2]
+    dt.set_route(1, [(CENTRE, AXIS)])  # a new path: it asks again, after the west-bound person
+    dt.update(2.5, pos)  # the other side has waited 2.5 s > platoon_s: no more grants eastward
+    assert dt.granted[1] == -1 and dt.waiting()[1]
+    pos[0] = [0.8, 0.0]  # the holder is through
+    dt.update(3.0, pos)
+    assert dt.granted[2] == 0 and dt.granted[1] == -1
+
+
+def test_grant_lapses_and_queue_order():
+    dt = _turns(2, grant_max_s=3.0)
+    dt.set_route(0, [(CENTRE, AXIS)])
+    dt.set_route(1, [(CENTRE, -AXIS)])
+    pos = np.array([[-2.0, 0.0], [2.0, 0.0]])
+    dt.update(0.0, pos)
+    assert dt.granted[0] == 0
+    dt.update(3.5, pos)  # person 0 did not move: its grant lapses, it asks anew behind person 1
+    assert dt.granted[0] == -1 and dt.granted[1] == 0
+
+
+def test_someone_in_the_door_holds_it_and_inactive_people_let_go():
+    dt = _turns(2)
+    dt.set_route(0, [(CENTRE, AXIS)])
+    dt.set_route(1, [(CENTRE, -AXIS)])
+    pos = np.array([[-0.3, 0.0], [2.0, 0.0]])
+    dt.update(0.0, pos)
+    assert dt.granted[0] == 0
+    dt.update(0.1, pos, active=np.array([False, True]))  # person 0 fell in the door
+    assert dt.granted[0] == -1 and dt.granted[1] == 0
+
+
+def test_rollout_positions_wait_at_a_door_held_against_them():
+    dt = _turns(2)
+    dt.set_route(0, [(CENTRE, AXIS)])
+    dt.set_route(1, [(CENTRE, -AXIS)])
+    dt.update(0.0, np.array([[-1.0, 0.0], [6.0, 0.0]]))  # person 1 is far: not asking yet
+    assert dt.granted[0] == 0 and not dt.waiting()[1]
+    pref = np.array([[1.0, 0.0], [-1.0, 0.0]])
+    far = dt.apply(np.array([[-1.0, 0.0], [6.0, 0.0]]), pref, np.ones(2))
+    np.testing.assert_allclose(far, pref)
+    near = dt.apply(np.array([[-1.0, 0.0], [2.2, 0.0]]), pref, np.ones(2))  # rolled out to the door
+    assert not np.allclose(near[1], pref[1])
+
+
+def test_params_are_checked():
+    with pytest.raises(ValueError, match="approach"):
+        DoorParams(approach=-1.0)
+    with pytest.raises(ValueError, match="wait"):
+        DoorParams(wait=3.0, approach=2.5)
+    with pytest.raises(ValueError, match="human_door_turns"):
+        NavConfig(human_door_turns=1)
+
+
+def test_path_doors_finds_real_doors_only():
+    grid = OccupancyGrid.from_scene(get_scene("doorway"))
+    path = np.array([[4.0, 4.0], [8.0, 4.0], [12.0, 4.0]])
+    doors = path_doors(path, np.array([3.0, 4.0]), grid, two_sided=True, end_margin=0.7)
+    assert len(doors) == 1
+    c, a, _ = doors[0]
+    assert abs(c[0] - 8.0) < 0.2 and abs(c[1] - 4.0) < 0.3 and a[0] > 0.99
+    along_wall = np.array([[12.0, 0.5], [15.5, 0.5], [15.5, 7.0]])  # hugging the walls, through no door
+    assert path_doors(along_wall, np.array([10.5, 0.5]), grid, two_sided=True, end_margin=0.7) == []
+
+
+def _goals(scene: str, n: int, doors: bool, seconds: float) -> tuple[int, int]:
+    env = NavEnv(scene=scene, n_robots=0, n_humans=n, crowd_model="sfm", time_limit=seconds, human_door_turns=doors)
+    w = FrozenAgents(env, lambda a: a.startswith("human_"), CrowdPolicy("sfm"))
+    w.reset(seed=0)
+    while not env._needs_reset:
+        w.step({})
+    found = env.door_turns.n_doors if doors else 0
+    w.close()
+    return int(env.goals_reached.sum()), found
+
+
+def test_doorway_crowd_reaches_more_goals_with_door_turns():
+    off, _ = _goals("doorway", 13, False, 60.0)
+    on, found = _goals("doorway", 13, True, 60.0)
+    assert found == 1
+    assert on >= off + 3, (off, on)
+
+
+def test_open_scene_finds_no_doors_and_is_unchanged():
+    assert _goals("square_crossing", 6, False, 20.0)[0] == _goals("square_crossing", 6, True, 20.0)[0]
