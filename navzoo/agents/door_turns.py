@@ -25,7 +25,9 @@ turn-taking does:
 * a grant ends when its holder is ``passed`` beyond the door's centre, stops taking part (fell,
   arrived), gets a new path, or has held it ``grant_max_s`` seconds without getting through (it then
   asks again, last in the queue), so a person stuck elsewhere does not close a door for good;
-* someone already in a door (within ``throat`` of its centre) holds it, granted or not.
+* someone already in a door (within ``throat`` of its centre) holds it, granted or not, and so does
+  one who asks from a side with no waiting spot out of the door's lane (a door off a narrow corridor,
+  where a waiting person would block the corridor): the other side waits for it.
 
 Everything is deterministic and vectorised over people where it matters. Kinematic pedestrians get
 the edited preferred velocity at every step; the target rollouts of AMP pedestrians apply it at the
@@ -149,18 +151,43 @@ class DoorTurns:
             c, u = self.centres[door], sign * self.axes[door]  # u: the way the waiting person will go
             right = np.array([u[1], -u[0]])
             gap = 0.7  # m between queued people
-            cands = [c - along * u + side * lat * right
-                     for side in (1.0, -1.0)
-                     for along in (p.wait, p.wait + gap, p.wait + 2 * gap)
-                     for lat in p.side_step + gap * np.arange(6)]
-            arr = np.array(cands)
+            grid = [(along, side * lat)
+                    for side in (1.0, -1.0)
+                    for along in (p.wait, p.wait + gap, p.wait + 2 * gap)
+                    for lat in p.side_step + gap * np.arange(6)]
+            along = np.array([g[0] for g in grid])[:, None]
+            lat = np.array([g[1] for g in grid])[:, None]
+            axis_pt = c[None, :] - along * u[None, :]
+            arr = axis_pt + lat * right[None, :]
             ok = self._distance_at(arr) >= p.spot_clearance
-            spots[sign] = arr[ok] if ok.any() else (c - p.wait * u)[None]
+            # reached from the door's mouth straight back along the axis, then sideways, without touching a
+            # wall: on the door's own side, not seen through a wall or through another door
+            mouth = c - p.throat * u
+            f = np.linspace(0.0, 1.0, 12)[None, :, None]
+            back = mouth[None, None, :] + f * (axis_pt[:, None, :] - mouth[None, None, :])
+            aside = axis_pt[:, None, :] + f * (arr[:, None, :] - axis_pt[:, None, :])
+            legs = np.concatenate([back, aside], axis=1)
+            d_legs = self._distance_at(legs.reshape(-1, 2)).reshape(len(arr), -1)
+            ok &= (d_legs > 0.15).all(axis=1)
+            # and the way back does not run into a second narrow passage (doors facing each other across a
+            # corridor): once out in the open (0.55 m from walls), it stays 0.5 m from them
+            d_back = d_legs[:, : back.shape[1]]
+            out_in_open = np.maximum.accumulate(d_back > 0.55, axis=1)
+            ok &= ~(out_in_open & (d_back < 0.5)).any(axis=1)
+            spots[sign] = arr[ok]
         return spots[sign]
+
+    def can_queue(self, door: int, sign: int) -> bool:
+        """Whether people crossing ``door`` with ``sign`` have anywhere to wait out of its lane (a door from a
+        narrow corridor has not: there a waiting person would block the corridor, so people from that side
+        never wait, and those on the other side wait for them)."""
+        return len(self.spots(door, sign)) > 0
 
     def spot(self, door: int, sign: int, rank: int = 0) -> np.ndarray:
         """The ``rank``-th waiting spot (2,) of :meth:`spots` (the last one for longer queues)."""
         s = self.spots(door, sign)
+        if not len(s):
+            raise ValueError(f"door {door} has no waiting spot for crossings of sign {sign} (see can_queue)")
         return s[min(int(rank), len(s) - 1)]
 
     # ------------------------------------------------------------------ per step
@@ -209,8 +236,11 @@ class DoorTurns:
         asking = near & (self.granted < 0)
         self.request_t[asking & ~np.isfinite(self.request_t)] = t
         new = np.zeros(self.n, dtype=bool)
-        inside = asking & (dist < p.throat)
-        self.granted[inside], self.grant_t[inside] = cur[inside], t  # someone in the door holds it
+        # someone in the door holds it, and so does one who has nowhere to wait
+        no_room = np.array([cur[j] >= 0 and not self.can_queue(int(cur[j]), int(sign[j])) for j in range(self.n)],
+                           dtype=bool)
+        inside = asking & ((dist < p.throat) | no_room)
+        self.granted[inside], self.grant_t[inside] = cur[inside], t
         new |= inside
         for d in np.unique(cur[asking & ~inside]):
             holders = np.flatnonzero(self.granted == d)
@@ -254,6 +284,7 @@ class DoorTurns:
         against = (held_way[idx] != 0) & (held_way[idx] != sign)
         queued = self.waiting() & has
         wait = (queued | (near & against)) & (dist >= p.throat)
+        wait &= np.array([w and self.can_queue(int(cur[j]), int(sign[j])) for j, w in enumerate(wait)], dtype=bool)
         if not wait.any():
             return pref
         out = np.array(pref, dtype=np.float64, copy=True)
