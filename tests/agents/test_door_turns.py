@@ -157,3 +157,18 @@ def test_doorway_crowd_reaches_more_goals_with_door_turns():
 
 def test_open_scene_finds_no_doors_and_is_unchanged():
     assert _goals("square_crossing", 6, False, 20.0)[0] == _goals("square_crossing", 6, True, 20.0)[0]
+
+
+def test_waiting_spots_stay_on_the_door_side_and_off_narrow_corridors():
+    grid = OccupancyGrid.from_scene(get_scene("home"))
+    dt = DoorTurns(1, grid.distance_at)
+    door, sign = dt.door_id(np.array([3.45, 6.0]), np.array([0.0, -1.0]))  # living-room door, crossed southward
+    assert sign == 1
+    assert not dt.can_queue(door, 1)  # from the 1.28 m corridor: nowhere to wait out of the way
+    assert dt.can_queue(door, -1)
+    spots = dt.spots(door, -1)
+    assert (spots[:, 1] < 6.0).all()  # in the living room, not seen through the wall in another room
+    assert (grid.distance_at(spots) >= dt.params.spot_clearance).all()
+    dt.set_route(0, [(np.array([3.45, 6.0]), np.array([0.0, -1.0]))])
+    dt.update(0.0, np.array([[3.45, 7.0]]))
+    assert dt.granted[0] == door  # asking from the corridor side: granted at once
