@@ -68,11 +68,7 @@ class CrowdPolicy:
         if self.model == "diffusion":  # the sampled plans set where and how fast; social force avoids
             if env.diffusion is None:
                 raise ValueError("CrowdPolicy('diffusion') needs an env made with crowd_model='diffusion'")
-            pref = env.diffusion.preferred_velocities(env)
-            if env.turn_taking is not None:
-                pref = env.turn_taking.apply(env.sim_time, pref)
-            if env.door_turns is not None:
-                pref = env.door_turns.apply(pos, pref, env.v_pref[h])
+            pref = env.crowd_conventions(env.diffusion.preferred_velocities(env), env.sim_time)
         else:
             # Toward the next A* waypoint, with turn-taking; CrowdNav's people slow down within 1 m of the goal.
             pref = env.human_preferred_velocity(slow_radius=1.0 if self.model == "orca_rvo2" else 0.5)

@@ -18,10 +18,10 @@ turn-taking does:
   follow each other through), unless somebody on the other side has waited ``platoon_s`` or longer:
   then the door changes direction once those inside are through. Requests are served first come,
   first served;
-* a person who asks and is not granted **waits** at the door's waiting spot on its side
-  (``wait`` from the door's centre along its axis, a step to the waiting person's right so that
-  people coming through pass on its left, moved closer or to the other side where a wall is in the
-  way), until its turn comes;
+* a person who asks and is not granted **waits** in a queue of spots beside the door on its own side
+  (:meth:`DoorTurns.spots`: ``wait`` back from the door's centre along its axis, ``side_step`` or more
+  to the waiting person's right so that people coming through pass on its left), and comes forward as
+  the queue moves, until its turn comes;
 * a grant ends when its holder is ``passed`` beyond the door's centre, stops taking part (fell,
   arrived), gets a new path, or has held it ``grant_max_s`` seconds without getting through (it then
   asks again, last in the queue), so a person stuck elsewhere does not close a door for good;
@@ -104,7 +104,7 @@ class DoorTurns:
         self._distance_at = distance_at
         self.centres = np.zeros((0, 2))
         self.axes = np.zeros((0, 2))  # canonical axis of each door
-        self._spots: list[dict[int, np.ndarray]] = []  # per door: {sign of the crossing: waiting spot}
+        self._spots: list[dict[int, np.ndarray]] = []  # per door: {sign of the crossing: waiting spots}
         self.routes: list[list[tuple[int, int]]] = [[] for _ in range(self.n)]  # (door, +-1 along its axis)
         self.k = np.zeros(self.n, dtype=int)  # index of each person's next door in its route
         self.granted = np.full(self.n, -1)  # the door each person holds (-1: none)
@@ -196,12 +196,10 @@ class DoorTurns:
         self.grant_t[who] = -np.inf
         self.request_t[who] = np.inf
 
-    def _next_door(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Advance every route past the doors already crossed; (next door or -1, sign, signed distance
-        along the crossing from the centre)."""
+    def _next_door(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Advance every route past the doors already crossed; (next door or -1, sign of its crossing)."""
         cur = np.full(self.n, -1)
         sign = np.zeros(self.n, dtype=int)
-        s = np.full(self.n, -np.inf)
         for j in range(self.n):
             route = self.routes[j]
             while self.k[j] < len(route):
@@ -212,9 +210,9 @@ class DoorTurns:
                         self._release(np.array([j]))
                     self.k[j] += 1
                     continue
-                cur[j], sign[j], s[j] = d, g, along
+                cur[j], sign[j] = d, g
                 break
-        return cur, sign, s
+        return cur, sign
 
     def update(self, t: float, pos: np.ndarray, active: np.ndarray | None = None) -> np.ndarray:
         """Requests, grants and their ends at time ``t`` for positions ``pos`` (n, 2); ``active`` (n,)
@@ -222,7 +220,7 @@ class DoorTurns:
         p = self.params
         active = np.ones(self.n, dtype=bool) if active is None else np.asarray(active, dtype=bool)
         pos = np.asarray(pos, dtype=np.float64).reshape(self.n, 2)
-        cur, sign, _ = self._next_door(pos)
+        cur, sign = self._next_door(pos)
         self._cur, self._sign = cur, sign
         # grants end when their holder stops taking part, is past the door, or lapses (it then asks anew,
         # last in the queue, below)

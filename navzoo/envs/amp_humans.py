@@ -402,10 +402,8 @@ class AmpHumans:
                                                    visible[j])
                 wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in range(self.n)])
                 pref = preferred_velocity(pos, wp, goal, v_pref)
-            if env.turn_taking is not None:  # yields in progress shape the rollout ahead
-                pref = env.turn_taking.apply(env.sim_time + k * PLAN_DT, pref)
-            if env.door_turns is not None:  # so do the door turns, at the rolled-out positions
-                pref = env.door_turns.apply(pos, pref, v_pref)
+            # yields in progress shape the rollout ahead, and so do the door turns, at the rolled-out positions
+            pref = env.crowd_conventions(pref, env.sim_time + k * PLAN_DT, pos, v_pref)
             o_pos = r_pos + (k * PLAN_DT) * r_vel
             if narrow is not None:
                 wall_rad = graded_wall_radius(pos, env.radius[h], WALL_PLAN_MARGIN, narrow)

@@ -904,14 +904,25 @@ class NavEnv(ParallelEnv):
                                  slow_radius: float = 0.5) -> np.ndarray:
         """(H, 2) pedestrians' preferred velocities: toward the next A* waypoint at their preferred
         speed, slowing down linearly within ``slow_radius`` of the goal, with turn-taking
-        (``NavConfig.human_yielding``) applied at time ``t`` (default: now) unless ``yielding`` is False."""
+        (``NavConfig.human_yielding``) and door turns (``NavConfig.human_door_turns``) applied at time ``t``
+        (default: now) unless ``yielding`` is False."""
         h = np.arange(self.n_robots, self.n_total)
         pref = preferred_velocity(self.pos[h], self.next_waypoints()[h], self.goal[h], self.v_pref[h],
                                   slow_radius=slow_radius)
-        if yielding and self.turn_taking is not None:
-            pref = self.turn_taking.apply(self.sim_time if t is None else t, pref)
-        if yielding and self.door_turns is not None:
-            pref = self.door_turns.apply(self.pos[h], pref, self.v_pref[h])
+        return self.crowd_conventions(pref, self.sim_time if t is None else t) if yielding else pref
+
+    def crowd_conventions(self, pref: np.ndarray, t: float, pos: np.ndarray | None = None,
+                          v_pref: np.ndarray | None = None) -> np.ndarray:
+        """(H, 2) preferred velocities ``pref`` with turn-taking (at time ``t``) and door turns (at positions
+        ``pos``, default the pedestrians' own, walking to waiting spots at ``v_pref``, default theirs) applied,
+        where the config turns them on; the one place every crowd (kinematic steps, AMP target rollouts) edits
+        its preferred velocities for them."""
+        h = np.arange(self.n_robots, self.n_total)
+        if self.turn_taking is not None:
+            pref = self.turn_taking.apply(t, pref)
+        if self.door_turns is not None:
+            pref = self.door_turns.apply(self.pos[h] if pos is None else pos, pref,
+                                         self.v_pref[h] if v_pref is None else v_pref)
         return pref
 
     def _update_door_turns(self, t: float = 0.0) -> np.ndarray:
