@@ -263,6 +263,31 @@ def test_keep_apart_rollouts_hold_the_margin_without_pushing_walkers_aside():
     assert gap["keep"][-1] < gap["wide"][-1] - 0.05
 
 
+def test_pass_margin_rollouts_keep_room_from_people_met_not_from_people_walked_with(monkeypatch):
+    """PASS_MARGIN: two people walking side by side are not pushed apart as radii widened by the margin push
+    them; two people who meet head-on on close lines pass as far apart as with the widened radii."""
+    import navzoo.envs.amp_humans as ah
+    from navzoo.envs.nav_env import NavEnv
+
+    assert ah.PASS_MARGIN is False  # off by default
+
+    def rollouts(on: bool, starts, goals) -> np.ndarray:
+        monkeypatch.setattr(ah, "PASS_MARGIN", on)
+        env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=2, human_model="amp", dt=1.0 / 30.0)
+        try:
+            env.reset(seed=0, options={"human_starts": starts, "human_goals": goals})
+            return env.amp.paths.copy()
+        finally:
+            env.close()
+
+    side = ([[-3.0, 0.45], [-3.0, -0.45]], [[3.0, 0.45], [3.0, -0.45]])
+    meet = ([[-3.0, 0.2], [3.0, -0.2]], [[3.0, 0.2], [-3.0, -0.2]])
+    gap = {(name, on): np.linalg.norm(np.subtract(*rollouts(on, *pair)), axis=1)
+           for name, pair in (("side", side), ("meet", meet)) for on in (False, True)}
+    assert gap["side", True][-1] < gap["side", False][-1] - 0.05
+    assert gap["meet", True].min() == pytest.approx(gap["meet", False].min(), abs=0.03)
+
+
 def test_target_speed_cap_holds_social_force_rollouts_to_the_preferred_speed(monkeypatch):
     from navzoo.envs import amp_humans
     from navzoo.envs.nav_env import NavEnv

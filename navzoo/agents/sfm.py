@@ -85,6 +85,13 @@ class SocialForceParams:
             (the default). navzoo choice, for the target rollouts of physics pedestrians, whose
             swinging limbs reach beyond their discs.
         keep_range: Range (m) of the keep-apart repulsion. navzoo choice: 0.05.
+        pass_margin: Room (m) each person keeps beyond its radius from others that it *passes*: the
+            contact distance of a pair grows by ``2 pass_margin min(1, |v_j - v_i| / pass_speed)``, so
+            people who meet, cross or overtake fast keep the room, and people walking together (behind
+            or beside one another at the same velocity) keep their bare radii. 0 = off (the default).
+            navzoo choice, for the target rollouts of physics pedestrians (``navzoo.envs.amp_humans``
+            ``PASS_MARGIN``), whose swinging limbs catch when they pass each other close.
+        pass_speed: Relative speed (m/s) at which the full ``pass_margin`` applies. navzoo choice: 1.0.
     """
 
     tau: float = 0.5
@@ -100,10 +107,12 @@ class SocialForceParams:
     max_substep: float = 0.1
     keep_apart: float = 0.0
     keep_range: float = 0.05
+    pass_margin: float = 0.0
+    pass_speed: float = 1.0
 
     def __post_init__(self) -> None:
-        positive = ("tau", "B", "B_wall", "neighbor_dist", "max_accel", "max_substep", "keep_range")
-        non_negative = ("A", "A_wall", "step_time", "side_bias", "keep_apart")
+        positive = ("tau", "B", "B_wall", "neighbor_dist", "max_accel", "max_substep", "keep_range", "pass_speed")
+        non_negative = ("A", "A_wall", "step_time", "side_bias", "keep_apart", "pass_margin")
         for f in fields(self):
             value = getattr(self, f.name)
             if not np.isfinite(value):
@@ -211,6 +220,9 @@ def _interaction(
 
     # Radius-aware potential V = A exp(-(b - R) / B): -dV/db = (A / B) exp(-(b - R) / B).
     contact = radius[:, None] + radius_j[None, :]
+    if params.pass_margin > 0.0:  # room kept from those passed, not from those walked with (see SocialForceParams)
+        rel_speed = np.linalg.norm(vel_j[None, :, :] - vel[:, None, :], axis=2)
+        contact = contact + 2.0 * params.pass_margin * np.minimum(rel_speed / params.pass_speed, 1.0)
     magnitude = (params.A / params.B) * np.exp(np.minimum(-(b - contact) / params.B, 50.0))
     force = magnitude[..., None] * grad_b  # (N, K, 2)
 

@@ -129,6 +129,12 @@ SKIP_PASSED_WAYPOINTS = False
 # with social-force targets but falls 0.012 -> 0.039 and agent contacts 0.085 -> 0.218, and 0.659 -> 0.544
 # with diffusion targets.
 KEEP_APART = False
+# PASS_MARGIN = True keeps PLAN_MARGIN only between people who pass one another: the rollouts use the bare
+# radii, and a pair's contact distance grows by 2 x PLAN_MARGIN x min(1, relative speed / PASS_SPEED)
+# (SocialForceParams.pass_margin). People walking in one direction together (a corridor's lane, a queue)
+# keep close as kinematic ones do; people meeting or crossing keep the room their limbs need.
+PASS_MARGIN = False
+PASS_SPEED = 1.0  # m/s
 
 
 # Social force turns a disc toward a new direction as fast as its relaxation allows: at a trip's
@@ -368,6 +374,8 @@ class AmpHumans:
         rad = env.radius[h] + PLAN_MARGIN  # an articulated body swings beyond its disc: plan with room to spare
         # keep apart: the room is held by a short-range push, the social repulsion is that of the bare discs
         sf_rad, sf_params = (env.radius[h], self.sfm_keep) if KEEP_APART else (rad, self.sfm)
+        if PASS_MARGIN:  # the room only between people who pass one another
+            sf_rad, sf_params = env.radius[h], SocialForceParams(pass_margin=PLAN_MARGIN, pass_speed=PASS_SPEED)
         graded = GRADED_WALL_MARGIN and WALL_PLAN_MARGIN > 0.0 and env.config.crowd_model in ("sfm", "diffusion")
         narrow = self.narrow_passages(paths, env.radius[h]) if graded else None
         wall_rad = env.radius[h] + WALL_PLAN_MARGIN

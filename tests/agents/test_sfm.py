@@ -208,3 +208,30 @@ def test_keep_apart_leaves_the_social_repulsion_and_holds_the_room() -> None:
             pos = pos + dt * vel
             closest[name] = min(closest[name], float(np.linalg.norm(pos[0] - pos[1])))
     assert closest["bare"] < 2 * radius + 2 * 0.1 <= closest["keep"]
+
+
+def test_pass_margin_is_checked() -> None:
+    with pytest.raises(ValueError, match="pass_margin"):
+        SocialForceParams(pass_margin=-0.1)
+    with pytest.raises(ValueError, match="pass_speed"):
+        SocialForceParams(pass_speed=0.0)
+
+
+def test_pass_margin_keeps_room_from_people_passed_not_from_people_walked_with() -> None:
+    radius = 0.3
+    passing = SocialForceParams(pass_margin=0.1, pass_speed=1.0)
+    # walking together, one behind the other and side by side at one velocity: the bare radii's forces
+    pos = np.array([[0.0, 0.0], [0.8, 0.0], [0.0, 0.7]])
+    vel = np.tile([1.2, 0.0], (3, 1))
+    np.testing.assert_allclose(social_forces(pos, vel, vel, radius, passing).people,
+                               social_forces(pos, vel, vel, radius, PARAMS).people, atol=1e-12)
+    # meeting head-on at 2 m/s relative speed (above pass_speed): the forces of radii widened by the margin
+    pos, vel = np.array([[-1.0, 0.1], [1.0, -0.1]]), np.array([[1.0, 0.0], [-1.0, 0.0]])
+    np.testing.assert_allclose(social_forces(pos, vel, vel, radius, passing).people,
+                               social_forces(pos, vel, vel, radius + 0.1, PARAMS).people, rtol=1e-9)
+    # overtaking at 0.5 m/s: half the margin, so a repulsion between the bare and the widened radii's
+    pos, vel = np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([[1.2, 0.0], [0.7, 0.0]])
+    f = [np.linalg.norm(social_forces(pos, vel, vel, r, prm).people[0])
+         for r, prm in ((radius, PARAMS), (radius, passing), (radius + 0.05, PARAMS), (radius + 0.1, PARAMS))]
+    assert f[0] < f[1] < f[3]
+    np.testing.assert_allclose(f[1], f[2], rtol=1e-9)
