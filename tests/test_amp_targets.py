@@ -246,15 +246,15 @@ def test_keep_apart_rollouts_hold_the_margin_without_pushing_walkers_aside():
     from navzoo.envs.nav_env import NavEnv
 
     def rollouts(keep: bool) -> np.ndarray:
-        old = ah.KEEP_APART
-        ah.KEEP_APART = keep
+        old, old_pass = ah.KEEP_APART, ah.PASS_MARGIN
+        ah.KEEP_APART, ah.PASS_MARGIN = keep, False  # against the margin on the radius of every pair
         env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=2, human_model="amp", dt=1.0 / 30.0)
         try:
             env.reset(seed=0, options={"human_starts": [[-3.0, 0.45], [-3.0, -0.45]],
                                        "human_goals": [[3.0, 0.45], [3.0, -0.45]]})
             return env.amp.paths.copy()
         finally:
-            ah.KEEP_APART = old
+            ah.KEEP_APART, ah.PASS_MARGIN = old, old_pass
             env.close()
 
     wide, keep = rollouts(False), rollouts(True)
@@ -269,7 +269,7 @@ def test_pass_margin_rollouts_keep_room_from_people_met_not_from_people_walked_w
     import navzoo.envs.amp_humans as ah
     from navzoo.envs.nav_env import NavEnv
 
-    assert ah.PASS_MARGIN is False  # off by default
+    assert ah.PASS_MARGIN is True  # on by default
 
     def rollouts(on: bool, starts, goals) -> np.ndarray:
         monkeypatch.setattr(ah, "PASS_MARGIN", on)
