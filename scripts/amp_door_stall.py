@@ -2,7 +2,7 @@
 
     python scripts/amp_door_stall.py scan [--radii 0.33,0.35,...,0.4]
     python scripts/amp_door_stall.py lone [--scene home] [--seeds 0,1] [--graded 1|0] [--seconds 200]
-    python scripts/amp_door_stall.py cost
+    python scripts/amp_door_stall.py cost [--toggle GRADED_WALL_MARGIN|PASS_MARGIN] [--scenes home:5,doorway:13]
 
 ``scan`` rolls one social-force disc (0.4 m towards people, as the rollouts of ``navzoo.envs.amp_humans``:
 1.3 m/s, 2 rad/s turn limit, 0.1 s steps) through the home's middle door (x = 8 m, 0.9 m wide) from 14 starts,
@@ -10,8 +10,8 @@
 starts did not get through in 7 s. ``lone`` runs the following protocol's scene with one person
 (:func:`navzoo.benchmark.pedestrians.follow_scene`) and prints its trips per outcome, one JSON line per seed,
 with the graded wall margin on (1) or off (0). ``cost`` times one replan of all target rollouts
-(``AmpHumans.plan_all``) in the home (5 people) and the doorway (13), with the graded margin off and on,
-twice each (median of 7 replans).
+(``AmpHumans.plan_all``) in the home (5 people) and the doorway (13), with the graded margin (or, with
+``--toggle PASS_MARGIN``, the pass margin) off and on, twice each (median of 7 replans).
 """
 
 from __future__ import annotations
@@ -71,27 +71,29 @@ def lone(scene: str, seeds: list[int], graded: bool, seconds: float) -> None:
                           **{k: row[k] for k in ("success", "off_path", "fall", "timeout", "map_trips")}}), flush=True)
 
 
-def cost() -> None:
+def cost(toggle: str = "GRADED_WALL_MARGIN", scenes: str = "home:5,doorway:13") -> None:
     import time
 
     import navzoo.envs.amp_humans as ah
     from navzoo.envs.nav_env import NavEnv
 
-    for scene, n in (("home", 5), ("doorway", 13)):
+    default = getattr(ah, toggle)
+    for item in scenes.split(","):
+        scene, n = item.split(":")[0], int(item.split(":")[1])
         env = NavEnv(scene=scene, n_robots=0, n_humans=n, human_model="amp", dt=1.0 / 30.0)
         env.reset(seed=0)
         ms: dict[str, list[float]] = {"off": [], "on": []}
-        for graded in (False, True, False, True):
-            ah.GRADED_WALL_MARGIN = graded
+        for on in (False, True, False, True):
+            setattr(ah, toggle, on)
             env.amp.plan_all()  # the first replan also finds the paths' narrow points
             times = []
             for _ in range(7):
                 t0 = time.perf_counter()
                 env.amp.plan_all()
                 times.append(time.perf_counter() - t0)
-            ms["on" if graded else "off"].append(round(1e3 * float(np.median(times)), 1))
-        ah.GRADED_WALL_MARGIN = True
-        print(json.dumps({"scene": scene, "people": n, "replan_ms": ms}), flush=True)
+            ms["on" if on else "off"].append(round(1e3 * float(np.median(times)), 1))
+        setattr(ah, toggle, default)
+        print(json.dumps({"scene": scene, "people": n, "toggle": toggle, "replan_ms": ms}), flush=True)
         env.close()
 
 
@@ -105,12 +107,15 @@ def main(argv: list[str] | None = None) -> int:
     lo.add_argument("--seeds", default="0,1")
     lo.add_argument("--graded", type=int, choices=(0, 1), default=1)
     lo.add_argument("--seconds", type=float, default=200.0)
-    sub.add_parser("cost")
+    c = sub.add_parser("cost")
+    c.add_argument("--toggle", choices=("GRADED_WALL_MARGIN", "PASS_MARGIN"), default="GRADED_WALL_MARGIN",
+                   help="the amp_humans switch timed off and on (default: the graded wall margin)")
+    c.add_argument("--scenes", default="home:5,doorway:13", help="SCENE:PEOPLE,... (default home:5,doorway:13)")
     args = ap.parse_args(argv)
     if args.cmd == "scan":
         scan([float(r) for r in args.radii.split(",")])
     elif args.cmd == "cost":
-        cost()
+        cost(args.toggle, args.scenes)
     else:
         lone(args.scene, [int(s) for s in args.seeds.split(",")], bool(args.graded), args.seconds)
     return 0
