@@ -79,7 +79,8 @@ def cost(toggle: str = "GRADED_WALL_MARGIN", scenes: str = "home:5,doorway:13") 
 
     default = getattr(ah, toggle)
     for item in scenes.split(","):
-        scene, n = item.split(":")[0], int(item.split(":")[1])
+        scene, people = item.split(":")
+        n = int(people)
         env = NavEnv(scene=scene, n_robots=0, n_humans=n, human_model="amp", dt=1.0 / 30.0)
         env.reset(seed=0)
         ms: dict[str, list[float]] = {"off": [], "on": []}

@@ -120,13 +120,9 @@ def door_entries(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, radiu
     ``radius`` from every wall and the door is not at either end of the path; other doors are left.
     """
     path = np.asarray(path, dtype=np.float64).reshape(-1, 2)
-    line = np.concatenate([np.asarray(start, dtype=np.float64).reshape(1, 2), path])
-    if len(line) < 2:
-        return path
+    start = np.asarray(start, dtype=np.float64).reshape(1, 2)
     out = path
-    for centre, axis, clearance in path_doors(path, start, grid, half_width, max_length):
-        if np.linalg.norm(centre - line[0]) < reach + 0.25 or np.linalg.norm(centre - line[-1]) < reach + 0.25:
-            continue
+    for centre, axis, clearance in path_doors(path, start, grid, half_width, max_length, end_margin=reach + 0.25):
         entry, exit_ = centre - reach * axis, centre + reach * axis
         probe = np.linspace(0.0, 1.0, 15)[:, None]
         across = np.concatenate([entry + probe * (centre - entry), centre + probe * (exit_ - centre)])
@@ -136,7 +132,7 @@ def door_entries(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, radiu
         keep = np.linalg.norm(out - centre, axis=1) >= reach + 0.25
         if not keep[-1]:  # the goal itself is near the door: leave it
             continue
-        i = _nearest_segment(np.concatenate([line[:1], out]), centre)  # the door lies after out[i - 1]
+        i = _nearest_segment(np.concatenate([start, out]), centre)  # the door lies after out[i - 1]
         idx = np.arange(len(out))
         out = np.concatenate([out[keep & (idx < i)], entry[None], centre[None], exit_[None], out[keep & (idx >= i)]])
     return out
