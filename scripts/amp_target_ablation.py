@@ -25,7 +25,7 @@ rollouts held by a short-range push instead of a wider radius). A thirteenth fie
 or empty = the module's default), and a fourteenth field SCAP sets ``TARGET_SPEED_CAP`` (the social-force or
 ORCA rollouts go at most SCAP x the preferred speed; 0 = off; left out or empty = the module's default), and a
 fifteenth field LAG turns ``LAG_LIMIT_RULES`` on (1) or off (0) (social-force and ORCA targets run at most
-``LAG_LIMIT_S`` ahead of the body, as diffusion targets do; default off). A sixteenth field SET sets other
+``LAG_LIMIT_S`` ahead of the body, as diffusion targets do; default on since 2026-12-01). A sixteenth field SET sets other
 upper-case constants of ``navzoo.envs.amp_humans``, ``NAME=VALUE`` joined by ``+`` (e.g.
 ``START_LAG=1+START_REPLAN_S=0.7``; the value takes the constant's type, booleans as 1 or 0).
 ``--crowd`` picks the crowd model that makes the targets (default ``sfm``), and

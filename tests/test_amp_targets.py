@@ -319,10 +319,10 @@ def _lead_of_targets_over_standing_bodies(monkeypatch, **constants) -> float:
     return lead
 
 
-def test_lag_limit_for_social_force_targets_is_an_option_off_by_default(monkeypatch):
+def test_lag_limit_holds_social_force_targets_by_default(monkeypatch):
     from navzoo.envs import amp_humans
 
-    assert amp_humans.LAG_LIMIT_RULES is False
+    assert amp_humans.LAG_LIMIT_RULES is True  # one pacing rule for every target generator
     free = _lead_of_targets_over_standing_bodies(monkeypatch, LAG_LIMIT_RULES=False)
     held = _lead_of_targets_over_standing_bodies(monkeypatch, LAG_LIMIT_RULES=True)
     assert held < 0.7 * free  # measured: 1.52 m ahead of a standing body by time alone, 0.84 m with the limit
@@ -333,9 +333,13 @@ def test_start_lag_holds_only_the_first_plan_of_a_trip(monkeypatch):
     from navzoo.envs.nav_env import NavEnv
 
     assert amp_humans.START_LAG is False
-    free = _lead_of_targets_over_standing_bodies(monkeypatch, START_LAG=False)
-    held = _lead_of_targets_over_standing_bodies(monkeypatch, START_LAG=True)  # a reset starts every trip
+    # START_LAG matters only without the lag limit on every plan (LAG_LIMIT_RULES, on by default), which holds
+    # the first plan of a trip too
+    free = _lead_of_targets_over_standing_bodies(monkeypatch, START_LAG=False, LAG_LIMIT_RULES=False)
+    held = _lead_of_targets_over_standing_bodies(monkeypatch, START_LAG=True, LAG_LIMIT_RULES=False)  # a reset starts every trip
     assert held < 0.7 * free
+    always = _lead_of_targets_over_standing_bodies(monkeypatch, START_LAG=False, LAG_LIMIT_RULES=True)
+    assert always == pytest.approx(held, abs=1e-6)
     env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=2, human_model="amp", dt=1 / 30, time_limit=10.0)
     env.reset(seed=0)
     amp = env.amp
