@@ -1,11 +1,12 @@
 """Do physics pedestrians keep their targets' pace? Body speed against target speed, by preferred speed.
 
     python scripts/amp_pace_probe.py [--scene circle_crossing] [--people 1] [--speeds 0.4,0.7,1.0,1.3] \
-        [--seconds 60] [--seed 0]
+        [--seconds 60] [--seed 0] [--crowd sfm|diffusion|orca]
 
-For each preferred walking speed v (``NavConfig.human_speed = (v, v)``), runs AMP pedestrians on
-social-force targets in one scene and prints one JSON line: the mean speed of the target point (from the
-target trajectory itself, so the jumps back to the body at each replan do not count), the mean speed of
+For each preferred walking speed v (``NavConfig.human_speed = (v, v)``), runs AMP pedestrians on the
+targets of one crowd model (``--crowd``, social force by default) in one scene and prints one JSON line:
+the mean speed of the target point (from the target trajectory itself, so the jumps back to the body at
+each replan do not count), the mean speed of
 the bodies' roots, their ratio, the mean distance between body and target (m), the share of steps where a
 body is more than 0.5 m from its target, and the trips' outcomes (as in ``navzoo eval
 pedestrians``: success, off path, fall, timeout). Steps of fallen people and of the first second after a
@@ -22,8 +23,8 @@ import numpy as np
 from navzoo.benchmark import pedestrians as P
 
 
-def probe(scene: str, people: int, speed: float, seconds: float, seed: int) -> dict:
-    wrapped, env = P._make(scene, people, "amp", seconds, seed, None, "sfm", env_overrides={"human_speed": (speed, speed)})
+def probe(scene: str, people: int, speed: float, seconds: float, seed: int, crowd: str = "sfm") -> dict:
+    wrapped, env = P._make(scene, people, "amp", seconds, seed, None, crowd, env_overrides={"human_speed": (speed, speed)})
     amp, h = env.amp, np.arange(env.n_robots, env.n_total)
     hz = 1.0 / env.config.dt
     trips = P.Trips(env, people)
@@ -43,7 +44,7 @@ def probe(scene: str, people: int, speed: float, seconds: float, seed: int) -> d
             ended[outcome] += 1
     wrapped.close()
     tv, bv, lg = (np.concatenate(x) for x in (tgt_v, body_v, lag))
-    return {"scene": scene, "people": people, "speed": speed, "seed": seed,
+    return {"scene": scene, "people": people, "speed": speed, "seed": seed, "crowd": crowd,
             "target_speed": round(float(tv.mean()), 3), "body_speed": round(float(bv.mean()), 3),
             "ratio": round(float(bv.mean() / max(tv.mean(), 1e-9)), 3), "lag_m": round(float(lg.mean()), 3),
             "lag_over_0.5": round(float((lg > 0.5).mean()), 3), **ended}
@@ -56,9 +57,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--speeds", default="0.4,0.7,1.0,1.3")
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--crowd", default="sfm", choices=("sfm", "diffusion", "orca"),
+                    help="the crowd model that makes the targets (default sfm)")
     args = ap.parse_args(argv)
     for v in (float(x) for x in args.speeds.split(",")):
-        print(json.dumps(probe(args.scene, args.people, v, args.seconds, args.seed)), flush=True)
+        print(json.dumps(probe(args.scene, args.people, v, args.seconds, args.seed, args.crowd)), flush=True)
     return 0
 
 
