@@ -179,3 +179,29 @@ def test_amp_targets_toward_diffusion_plans_keep_to_the_speed_cap(model_dir, mon
     v_pref = float(env.v_pref[0])
     assert peak[0.4][0] <= 0.4 * v_pref * 1.05
     assert peak[3.0][0] > 0.4 * v_pref * 1.5  # the plans are faster: the cap is what held them
+
+
+def test_amp_targets_look_0p4_s_ahead_on_the_diffusion_plans(model_dir, monkeypatch):
+    """DIFFUSION_LOOKAHEAD_S (0.4 s since 2026-12-01): a rollout heads for its plan's point that far ahead, so a
+    plan that runs ahead of the body pulls its target at (distance to that point) / lookahead."""
+    from navzoo.envs import amp_humans
+
+    assert amp_humans.DIFFUSION_LOOKAHEAD_S == 0.4
+    env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=1, crowd_model="diffusion",
+                 diffusion_model=str(model_dir), human_model="amp", dt=1 / 30, time_limit=10.0)
+    env.reset(seed=0)
+    monkeypatch.setattr(amp_humans, "DIFFUSION_SPEED_CAP", 10.0)  # the pace of the plan alone
+    here = env.amp.planar()[0][0].copy()
+    # a plan that walks east at 0.5 m/s from 0.3 m east of the body
+    monkeypatch.setattr(env.diffusion, "_plans_at", lambda t: (here + np.array([0.3, 0.0])
+                        + np.array([0.5, 0.0]) * (np.atleast_1d(t) - env.sim_time)[:, None])[None])
+    first = {}
+    for look in (0.4, 1.6):
+        monkeypatch.setattr(amp_humans, "DIFFUSION_LOOKAHEAD_S", look)
+        env.amp.plan_all()
+        first[look] = (env.amp.paths[0, 3] - env.amp.paths[0, 0]) / (3 / 30)  # the first 0.1 s, m/s
+    env.close()
+    # preferred velocity (0.3 + 0.5 look) / look east: 1.25 m/s at 0.4 s, 0.69 m/s at 1.6 s (social force relaxes
+    # toward it from the body's own velocity, so compare the direction and the order)
+    assert first[0.4][0] > first[1.6][0] > 0.0
+    assert abs(first[0.4][1]) < 0.3 * first[0.4][0]
