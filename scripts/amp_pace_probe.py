@@ -6,10 +6,9 @@
 For each preferred walking speed v (``NavConfig.human_speed = (v, v)``), runs AMP pedestrians on the
 targets of one crowd model (``--crowd``, social force by default) in one scene and prints one JSON line:
 the mean speed of the target point (from the target trajectory itself, so the jumps back to the body at
-each replan do not count), the mean speed of
-the bodies' roots, their ratio, the mean distance between body and target (m), the share of steps where a
-body is more than 0.5 m from its target, and the trips' outcomes (as in ``navzoo eval
-pedestrians``: success, off path, fall, timeout). Steps of fallen people and of the first second after a
+each replan do not count), the mean speed of the bodies' roots, their ratio, the mean distance between
+body and target (m), the share of steps where a body is more than 0.5 m from its target, and the trips'
+outcomes (as in ``navzoo eval pedestrians``: success, off path, fall, timeout). Steps of fallen people and of the first second after a
 trip starts are left out.
 """
 
