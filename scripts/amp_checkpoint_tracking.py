@@ -13,6 +13,14 @@ without obstacle rays, boxes and paired walkers for one with them, so compare li
         training/amp_scratch git:0ccd479:training/amp git:3ea0b4b:training/amp \\
         training/amp_scratch/policies/policy_00001059 training/amp_scratch/policies/policy_00001478
 
+Or, with ``--protocol stance``, the split stance (docs/pedestrians.md, "Where the realism gap lies") of any
+checkpoint, with or without obstacle rays: the whole clips are tracked as with ``tracking_full`` and the poses of
+the standing bodies (15 keypoints, root-centred, heading-aligned, in spine lengths, as the realism metrics) are
+compared with the clips': the mean walking pose (root speed 0.9 m/s and more) minus the clips' mean walking pose
+for the right and left foot along the heading (``right_foot_fwd``, ``left_foot_fwd``; the shipped policy about
++0.70 / -0.51, the clips 0 by definition), their difference ``foot_split``, and the realism MMD of the tracking
+poses against the clips (``tracking_mmd``, every control step).
+
 Each source is one of
 - a training folder as committed (``name``, ``meta.json``, ``state.pt.part-*``): its checkpoint is exported;
 - ``git:REV:FOLDER``: the same folder as it was at commit REV (earlier checkpoints of a run);
@@ -74,11 +82,41 @@ def materialise(source: str, work: Path) -> Path:
     return export_from_checkpoint(ckpt, work / f"policy_{path.name}")
 
 
+def stance(policy: Path, walk: float = 0.9) -> dict:
+    """The ``stance`` protocol (module doc): whole-clip tracking, then the walking poses' foot bias and MMD."""
+    import numpy as np
+
+    from navzoo.agents.amp.tracking import load_motions
+    from navzoo.benchmark import realism
+
+    lib = load_motions(None)
+    sink: list = []
+    result = track_clips(policy, lib, stop_on_failure=False, pose_sink=sink)
+    poses = np.concatenate([p for p, _ in sink])
+    speeds = np.concatenate([v for _, v in sink])
+    ref_poses = realism.clip_poses(lib, fps=realism.DEFAULT_FPS)
+    ref_speeds = realism.clip_root_speeds(lib, realism.DEFAULT_FPS)
+    mine, theirs = poses[speeds >= walk], ref_poses[ref_speeds >= walk]
+    names = list(realism.KEYPOINT_NAMES)
+    out = {k: result[k] for k in ("clip_success_rate", "mean_pos_error_m", "mean_rot_error_rad", "fall_rate")
+           if k in result}
+    out["walking_poses"] = int(len(mine))
+    if len(mine) >= 100:
+        bias = (mine.mean(0) - theirs.mean(0)).reshape(realism.N_KEYPOINTS, 3)
+        out["right_foot_fwd"] = float(bias[names.index("right_foot"), 0])
+        out["left_foot_fwd"] = float(bias[names.index("left_foot"), 0])
+        out["foot_split"] = out["right_foot_fwd"] - out["left_foot_fwd"]
+    else:
+        out["right_foot_fwd"] = out["left_foot_fwd"] = out["foot_split"] = None
+    out["tracking_mmd"] = float(realism.realism_metrics(poses, realism.RealismReference.fit(ref_poses, seed=0))["mmd"])
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("sources", nargs="+")
     ap.add_argument("--out", required=True, help="JSON lines, appended; sources already there are skipped")
-    ap.add_argument("--protocol", choices=("tracking", "tracking_full", "path3"), default="tracking")
+    ap.add_argument("--protocol", choices=("tracking", "tracking_full", "path3", "stance"), default="tracking")
     args = ap.parse_args(argv)
     out = Path(args.out)
     done = set()
@@ -98,6 +136,9 @@ def main(argv: list[str] | None = None) -> int:
             if args.protocol in ("tracking", "tracking_full"):
                 result = track_clips(policy, stop_on_failure=args.protocol == "tracking")
                 shown = ("clip_success_rate", "mean_pos_error_m", "max_pos_error_m", "mean_rot_error_rad")
+            elif args.protocol == "stance":
+                result = stance(policy)
+                shown = ("right_foot_fwd", "left_foot_fwd", "foot_split", "tracking_mmd", "clip_success_rate")
             else:
                 result = evaluate(str(policy), envs=32, seconds=60.0, stage=3, seed=0)
                 shown = ("episodes_ended", "falls", "mean_path_error_m")
