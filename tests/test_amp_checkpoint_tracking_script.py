@@ -94,3 +94,34 @@ def test_a_folder_with_a_newer_checkpoint_is_tracked_again(script, tmp_path, mon
     assert script.main([policy, "--out", str(out)]) == 0  # now done
     rows = [json.loads(line) for line in out.read_text().splitlines()]
     assert [r["trained_iterations"] for r in rows] == [older["trained_iterations"], config["trained_iterations"]]
+
+
+def test_the_stance_protocol_measures_the_feet_offset_from_the_clips(script, tmp_path, monkeypatch):
+    """Poses that are the clips' own with the right foot moved 0.3 forward and the left 0.2 back (spine lengths) read
+    as a split of 0.5; the clips themselves are the zero, and their MMD to themselves is at the floor."""
+    from navzoo.agents.amp.tracking import load_motions
+    from navzoo.benchmark import realism
+
+    lib = load_motions(None)
+    ref = realism.clip_poses(lib, fps=realism.DEFAULT_FPS)
+    speeds = realism.clip_root_speeds(lib, realism.DEFAULT_FPS)
+    names = list(realism.KEYPOINT_NAMES)
+    for shift, expect in (((0.3, -0.2), (0.3, -0.2, 0.5)), ((0.0, 0.0), (0.0, 0.0, 0.0))):
+        poses = ref.copy().reshape(len(ref), realism.N_KEYPOINTS, 3)
+        poses[:, names.index("right_foot"), 0] += shift[0]
+        poses[:, names.index("left_foot"), 0] += shift[1]
+        flat = poses.reshape(len(ref), -1)
+
+        def fake(policy, motions, stop_on_failure, pose_sink, _p=flat):
+            assert stop_on_failure is False
+            pose_sink.append((_p, speeds))
+            return {"clip_success_rate": 0.5, "mean_pos_error_m": 0.2, "mean_rot_error_rad": 0.4, "fall_rate": 0.1}
+
+        monkeypatch.setattr(script, "track_clips", fake)
+        row = script.stance(tmp_path)
+        assert (row["right_foot_fwd"], row["left_foot_fwd"], row["foot_split"]) == pytest.approx(expect, abs=1e-9)
+        assert row["walking_poses"] == int((speeds >= 0.9).sum()) and row["fall_rate"] == 0.1
+        if shift == (0.0, 0.0):
+            assert row["tracking_mmd"] < 0.05
+        else:
+            assert row["tracking_mmd"] > 0.05
