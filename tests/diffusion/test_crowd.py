@@ -205,3 +205,42 @@ def test_amp_targets_look_0p4_s_ahead_on_the_diffusion_plans(model_dir, monkeypa
     # toward it from the body's own velocity, so compare the direction and the order)
     assert first[0.4][0] > first[1.6][0] > 0.0
     assert abs(first[0.4][1]) < 0.3 * first[0.4][0]
+
+
+def test_end_targets_stay_on_the_path_and_only_targets_past_the_goal_are_clipped():
+    """Doorway: a person in the west room whose path goes through the door to a goal behind the dividing wall.
+    Its end target 5 m ahead is still on the path in the west room: it stays there (clipped from the goal it
+    would have crossed the wall). Near the goal the target is carried past it and stops short of the south wall."""
+    from navzoo.agents.diffusion.crowd import _clip_to_free, _end_targets
+
+    env = NavEnv(scene="doorway", n_robots=0, n_humans=2, crowd_model="sfm", time_limit=5.0)
+    env.reset(seed=0)
+    env.pos[0], env.goal[0] = np.array([2.0, 1.0]), np.array([9.0, 1.5])
+    corners = np.array([[2.0, 1.0], [7.5, 4.0], [8.5, 4.0], [9.0, 1.5]])
+    env.paths[0] = np.vstack([np.linspace(a, b, 8, endpoint=False) for a, b in zip(corners[:-1], corners[1:], strict=True)]
+                             + [corners[-1:]])[1:]  # waypoints every ~0.1-0.8 m, as A* paths are spaced
+    env.pos[1], env.goal[1] = np.array([9.0, 2.5]), np.array([9.0, 1.5])
+    env.paths[1] = np.array([[9.0, 1.5]])
+    env.wp_index[:] = 0
+    env.v_pref[:] = 5.0 / 4.8
+    people = np.array([0, 1])
+    target = _end_targets(env, people, 4.8, extend=True)
+    d = np.array([5.5, 3.0]) / np.hypot(5.5, 3.0)
+    along = (target[0] - corners[0]) @ d
+    np.testing.assert_allclose(target[0], corners[0] + along * d, atol=1e-9)  # on the path's first leg,
+    assert 5.0 <= along < np.hypot(5.5, 3.0)  # in the west room, 5 m on from the first waypoint
+    clipped = _clip_to_free(env, env.goal[:1], target[:1], env.config.human_radius + 0.1)[0]
+    assert clipped[0] > 8.0  # what clipping from the goal did: across the dividing wall
+    assert target[1][0] == pytest.approx(9.0) and 0.5 <= target[1][1] < 1.5  # past the goal, short of the wall
+    assert env.grid.distance_at(target[1][None])[0] >= env.config.human_radius + 0.1 - 1e-9
+    held = _end_targets(env, people, 4.8, extend=False)
+    np.testing.assert_allclose(held[0], target[0])
+    np.testing.assert_allclose(held[1], [9.0, 1.5])  # held at the goal
+    # turns allowed: a carried target blocked straight ahead turns toward the open side
+    env.pos[1] = np.array([9.0, 1.5]) + np.array([0.0, 1.0])
+    free = _end_targets(env, people, 4.8, extend=True, past_goal_turn_deg=90.0)
+    np.testing.assert_allclose(free[0], target[0])
+    assert np.linalg.norm(free[1] - env.goal[1]) > np.linalg.norm(target[1] - env.goal[1]) + 1.0
+    env.close()
+    with pytest.raises(ValueError, match="past_goal_turn_deg"):
+        DiffusionCrowd(TrajectoryDiffusion(CFG), past_goal_turn_deg=-1.0)

@@ -51,6 +51,7 @@ MODEL_DT = 0.4  # s per model step (ETH/UCY protocol)
 MAP_EXTENT = 8.0  # m, side of the occupancy / distance crops
 ACCEL_LIMIT = 1.0  # m/s², largest rise of pace along a physics body's target path (plan_positions)
 AMP_SPEED_FACTOR = 1.0  # x v_pref: the fastest pace along a physics body's target path
+TURN_STEP_DEG = 30.0  # past_goal_turn_deg: the turns tried past a goal, in steps of this many degrees
 BODY_MARGIN = 0.0  # m added to each physics body's radius in the people guidance (0.1 measured no better)
 
 
@@ -128,6 +129,52 @@ def _clip_to_free(env: NavEnv, start: np.ndarray, end: np.ndarray, clearance: fl
     return pts[np.arange(len(start)), k]
 
 
+def _freest_extension(env: NavEnv, start: np.ndarray, end: np.ndarray, clearance: float,
+                      max_turn_deg: float) -> np.ndarray:
+    """(B, 2) like :func:`_clip_to_free`, but the segment ``start -> end`` may turn about ``start`` by up to
+    ``max_turn_deg`` either way, in steps of :data:`TURN_STEP_DEG`: the turn that keeps the longest free run
+    wins, the smallest turn on ties (within 5 %). An extension past a goal beside furniture then bends along the
+    free side instead of ending at once."""
+    d = end - start
+    best = _clip_to_free(env, start, end, clearance)
+    run = np.linalg.norm(best - start, axis=1)
+    steps = int(np.floor(max_turn_deg / TURN_STEP_DEG + 1e-9))
+    for a in np.deg2rad(TURN_STEP_DEG * np.array([k * sign for k in range(1, steps + 1) for sign in (1, -1)])):
+        c, s = np.cos(a), np.sin(a)
+        turned = start + np.stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]], axis=1)
+        cand = _clip_to_free(env, start, turned, clearance)
+        r = np.linalg.norm(cand - start, axis=1)
+        better = r > 1.05 * run
+        best[better], run[better] = cand[better], r[better]
+    return best
+
+
+def _end_targets(env: NavEnv, people: np.ndarray, horizon_s: float, extend: bool,
+                 past_goal_turn_deg: float = 0.0) -> np.ndarray:
+    """(B, 2) world end targets of the plans of agents ``people``: the point of each one's A* path
+    ``v_pref x horizon_s`` ahead (:func:`_ahead_from_nearest`). With ``extend``, a target that would be held at
+    the goal is carried past it instead, along the path's last line (or turned by up to ``past_goal_turn_deg``
+    toward the longest free run, :func:`_freest_extension`), and stops where free space ends beyond the goal.
+
+    Only such a carried target is clipped. A target still on the path stays there: clipping it from the goal
+    would pull it across the walls between the goal and the path (until 2026-12-02 it did, for about half the
+    plans in the home; docs/crowd.md, "End targets left on the path").
+    """
+    target = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * horizon_s)
+                       for i in people]).reshape(-1, 2)
+    if not extend or len(people) == 0:
+        return target
+    ends = np.array([env.paths[i][-1] for i in people])  # the goals
+    past = np.linalg.norm(target - ends, axis=1) < 1e-9
+    if past.any():
+        carried = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * horizon_s,
+                                                True) for i in people[past]])
+        clearance = float(env.config.human_radius) + 0.1
+        target[past] = (_freest_extension(env, ends[past], carried, clearance, past_goal_turn_deg)
+                        if past_goal_turn_deg > 0 else _clip_to_free(env, ends[past], carried, clearance))
+    return target
+
+
 class DiffusionCrowd:
     """Batched diffusion planner of all pedestrians of one env (see the module doc).
 
@@ -147,6 +194,11 @@ class DiffusionCrowd:
             roughness comes from") found no setting that smooths the walk without losing goals.
         agent_buffer: clearance (m) beyond two body radii that the people guidance keeps between plans
             (TRACE's 0.2 m).
+        past_goal_turn_deg: a person who walks on to a new goal (``human_at_goal="new_goal"``) has its plan's
+            end target carried past the goal along the path's last line once the horizon reaches past the goal,
+            up to where free space ends; so beside furniture it ends a few decimetres past the goal. With this
+            above 0 the line may turn by up to this many degrees toward the longest free run
+            (:func:`_freest_extension`).
         k_neighbors, neighbor_radius: neighbours given to the model.
         seed: seed of the sampling noise (with the env's step count, so replays are exact).
         device: torch device of the model.
@@ -157,7 +209,7 @@ class DiffusionCrowd:
                  agent_weight: float = 10.0, map_weight: float = 10.0, k_neighbors: int = 16,
                  neighbor_radius: float = 10.0, seed: int = 0, device: str = "cpu",
                  path_weight: float = 20.0, blend_s: float = 1.2, smooth_weight: float = 0.0,
-                 agent_buffer: float = 0.2) -> None:
+                 agent_buffer: float = 0.2, past_goal_turn_deg: float = 0.0) -> None:
         if model is None or isinstance(model, (str, Path)):
             from navzoo.agents.diffusion.trainer import load_model
 
@@ -191,6 +243,9 @@ class DiffusionCrowd:
         if not agent_buffer >= 0:
             raise ValueError(f"agent_buffer must be >= 0, got {agent_buffer!r}")
         self.agent_buffer = float(agent_buffer)
+        if not 0 <= past_goal_turn_deg <= 180:
+            raise ValueError(f"past_goal_turn_deg must be in [0, 180], got {past_goal_turn_deg!r}")
+        self.past_goal_turn_deg = float(past_goal_turn_deg)
         self.n = 0
 
     # ------------------------------------------------------------------ state
@@ -280,10 +335,7 @@ class DiffusionCrowd:
         # beyond it on the path's last line (else every plan would end at the goal, and each replan
         # would slow down further as the goal comes closer); people who stop there aim at it.
         extend = env.config.human_at_goal != "stop"
-        target_w = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i],
-                                                 env.v_pref[i] * horizon_s, extend) for i in people])
-        if extend:  # a target carried past the goal stops where free space ends (walls beyond the goal)
-            target_w = _clip_to_free(env, env.goal[people], target_w, float(env.config.human_radius) + 0.1)
+        target_w = _end_targets(env, people, horizon_s, extend, self.past_goal_turn_deg)
         target = fdata.to_local(target_w[:, None, :], local)[:, 0]
         if self.cfg.goal:  # a goal-conditioned model gets the waypoint as its goal (guidance still pulls)
             batch["goal"] = torch.as_tensor(target, dtype=torch.float32)

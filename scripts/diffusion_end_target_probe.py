@@ -1,0 +1,72 @@
+"""How often the diffusion crowd's old end-target clip pulled targets off the path, scene by scene.
+
+    python scripts/diffusion_end_target_probe.py --scenes home:5,doorway:13,lobby:15 --seconds 40 [--bodies amp]
+
+Until 2026-12-02 every plan's end target (the point of the A* path ``v_pref x 4.8 s`` ahead) was clipped from
+the goal toward the target, to the last point with the body's clearance. That is meant for a target carried past
+the goal. A target still on the path has walls between it and the goal wherever the path bends around them. The
+clip then pulled it across them, toward the goal (docs/crowd.md, "End targets left on the path").
+
+The script runs the following protocol's setup (``navzoo.benchmark.pedestrians``, diffusion crowd, seed 0) and
+watches every plan. For each person planned, it notes whether the end target is still on the path or carried past
+the goal. It also notes how far the old clip would have moved it (``_clip_to_free`` from the goal, as before).
+It prints, per scene, the targets planned, how many were on the path, how many of those the old clip moved by more
+than 0.1 m, and the median of those moves (m).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+import navzoo.agents.diffusion.crowd as dc
+from navzoo.benchmark import pedestrians as P
+
+
+def probe(scene: str, n: int, seconds: float, bodies: str = "kinematic", seed: int = 0) -> dict:
+    """Counts of one scene (see the module doc)."""
+    counts = {"targets": 0, "on_path": 0, "moved": 0, "moves_m": []}
+    original = dc._end_targets
+
+    def spy(env, people, horizon_s, extend, past_goal_turn_deg=0.0):
+        out = original(env, people, horizon_s, extend, past_goal_turn_deg)
+        ends = np.array([env.paths[i][-1] for i in people]).reshape(-1, 2)
+        held = original(env, people, horizon_s, False)
+        on_path = np.linalg.norm(held - ends, axis=1) >= 1e-9
+        old = dc._clip_to_free(env, ends, held, float(env.config.human_radius) + 0.1)
+        move = np.linalg.norm(old - held, axis=1)
+        counts["targets"] += len(people)
+        counts["on_path"] += int(on_path.sum())
+        counts["moved"] += int((on_path & (move > 0.1)).sum())
+        counts["moves_m"] += move[on_path & (move > 0.1)].tolist()
+        return out
+
+    dc._end_targets = spy
+    try:
+        P.follow_scene(scene, n, seconds, seed, crowd_model="diffusion", human_model=bodies)
+    finally:
+        dc._end_targets = original
+    moves = counts.pop("moves_m")
+    return {"scene": scene, "pedestrians": n, "seconds": seconds, "bodies": bodies, **counts,
+            "median_move_m": float(np.median(moves)) if moves else None}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenes", default="home:5,doorway:13,lobby:15", help="scene:pedestrians,...")
+    ap.add_argument("--seconds", type=float, default=40.0)
+    ap.add_argument("--bodies", default="kinematic", choices=("kinematic", "amp"))
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+    for item in args.scenes.split(","):
+        name, _, k = item.partition(":")
+        if not name or not k.isdigit() or int(k) < 1:
+            ap.error(f"--scenes takes scene:pedestrians items, got {item!r}")
+        print(json.dumps(probe(name, int(k), args.seconds, args.bodies, args.seed)), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
