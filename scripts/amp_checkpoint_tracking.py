@@ -83,32 +83,31 @@ def materialise(source: str, work: Path) -> Path:
 
 
 def stance(policy: Path, walk: float = 0.9) -> dict:
-    """The ``stance`` protocol (module doc): whole-clip tracking, then the walking poses' foot bias and MMD."""
+    """The ``stance`` protocol (module doc): whole-clip tracking, then the walking poses' foot bias and MMD, with the
+    posture bias of ``scripts/amp_realism_by_speed.py`` (the realism study's own definition)."""
     import numpy as np
 
     from navzoo.agents.amp.tracking import load_motions
     from navzoo.benchmark import realism
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from amp_realism_by_speed import posture, reference_speeds  # the sibling script
 
     lib = load_motions(None)
     sink: list = []
     result = track_clips(policy, lib, stop_on_failure=False, pose_sink=sink)
     poses = np.concatenate([p for p, _ in sink])
     speeds = np.concatenate([v for _, v in sink])
-    ref_poses = realism.clip_poses(lib, fps=realism.DEFAULT_FPS)
-    ref_speeds = realism.clip_root_speeds(lib, realism.DEFAULT_FPS)
-    mine, theirs = poses[speeds >= walk], ref_poses[ref_speeds >= walk]
-    names = list(realism.KEYPOINT_NAMES)
+    ref_poses, ref_speeds, _ = reference_speeds(lib)
+    ref = realism.RealismReference.fit(ref_poses, seed=0)
     out = {k: result[k] for k in ("clip_success_rate", "mean_pos_error_m", "mean_rot_error_rad", "fall_rate")
            if k in result}
-    out["walking_poses"] = int(len(mine))
-    if len(mine) >= 100:
-        bias = (mine.mean(0) - theirs.mean(0)).reshape(realism.N_KEYPOINTS, 3)
-        out["right_foot_fwd"] = float(bias[names.index("right_foot"), 0])
-        out["left_foot_fwd"] = float(bias[names.index("left_foot"), 0])
-        out["foot_split"] = out["right_foot_fwd"] - out["left_foot_fwd"]
-    else:
-        out["right_foot_fwd"] = out["left_foot_fwd"] = out["foot_split"] = None
-    out["tracking_mmd"] = float(realism.realism_metrics(poses, realism.RealismReference.fit(ref_poses, seed=0))["mmd"])
+    out["walking_poses"] = int((speeds >= walk).sum())
+    bias = posture(poses, speeds, ref_poses, ref_speeds, ref, walk).get("bias")  # None below 100 walking poses
+    out["right_foot_fwd"] = bias["right_foot"][0] if bias else None
+    out["left_foot_fwd"] = bias["left_foot"][0] if bias else None
+    out["foot_split"] = out["right_foot_fwd"] - out["left_foot_fwd"] if bias else None
+    out["tracking_mmd"] = float(realism.realism_metrics(poses, ref)["mmd"])
     return out
 
 
