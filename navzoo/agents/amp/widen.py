@@ -1,6 +1,12 @@
 """Grow a training checkpoint's policy input to a longer observation (new inputs appended at the end).
 
-    python -m navzoo.agents.amp.widen SRC_CKPT_DIR DST_ROOT --obs-dim 141
+    python -m navzoo.agents.amp.widen SRC_CKPT_DIR DST_ROOT --obs-dim 141 [--export POLICY_DIR]
+
+SRC_CKPT_DIR is a checkpoint directory (``ckpt_*``) or a committed training folder whose state is split in
+``state.pt.part-*`` files (e.g. ``training/amp_stance``). ``--export`` also writes the widened checkpoint's
+deterministic policy (:func:`navzoo.agents.amp.train.export_from_checkpoint`): a policy that takes the wider
+observation and ignores the new inputs, i.e. where a resumed run with them starts (docs/pedestrians.md, "The
+stance run before its obstacle stage").
 
 Used to add the obstacle rays (16 inputs) to a policy trained without them, instead of training from
 scratch: the actor's and critic's first-layer weights get zero columns for the new inputs (so the
@@ -13,6 +19,7 @@ dropped, so the resumed run starts from freshly reset envs.
 from __future__ import annotations
 
 import argparse
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -81,8 +88,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("src")
     parser.add_argument("dst_root")
     parser.add_argument("--obs-dim", type=int, required=True)
+    parser.add_argument("--export", default=None, metavar="POLICY_DIR",
+                        help="also export the widened checkpoint's policy here")
     args = parser.parse_args(argv)
-    print(widen_checkpoint(args.src, args.dst_root, args.obs_dim))
+    src = Path(args.src)
+    with tempfile.TemporaryDirectory() as tmp:
+        if not (src / ckpt.STATE_FILE).is_file() and any(src.glob(f"{ckpt.STATE_FILE}.part-*")):
+            src = ckpt.join_split_checkpoint(src, Path(tmp) / src.name)  # a committed training folder
+        out = widen_checkpoint(src, args.dst_root, args.obs_dim)
+    print(out)
+    if args.export:
+        from navzoo.agents.amp.train import export_from_checkpoint
+
+        print(export_from_checkpoint(out, args.export))
     return 0
 
 
