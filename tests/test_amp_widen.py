@@ -12,25 +12,31 @@ from navzoo.agents.amp.path_env import AmpPathEnv, PathTaskConfig
 from navzoo.agents.amp.train import locomotion_reference
 from navzoo.agents.amp.widen import widen_checkpoint
 
+_CFG = AmpConfig(seed=0, actor_hidden=(32,), critic_hidden=(32,), disc_hidden=(32,), rollout_steps=4,
+                 minibatch_size=8)
 
-def test_widened_checkpoint_loads_and_acts_the_same(tmp_path):
-    ref = locomotion_reference()
-    cfg = AmpConfig(seed=0, actor_hidden=(32,), critic_hidden=(32,), disc_hidden=(32,), rollout_steps=4,
-                    minibatch_size=8)
-    env = AmpPathEnv(2, ref, PathTaskConfig(stage=1), seed=0)
-    learner = AmpLearner(env, cfg)
+
+def _small_checkpoint(root):
+    """A tiny trained learner's checkpoint (no obstacle rays), an observation of its env and its actions there."""
+    env = AmpPathEnv(2, locomotion_reference(), PathTaskConfig(stage=1), seed=0)
+    learner = AmpLearner(env, _CFG)
     learner.collect(4)
     learner.update()
-    src = learner.save_checkpoint(tmp_path / "a")
+    src = learner.save_checkpoint(root)
     obs = env.reset(seed=1)
     before = learner.act(obs)
     env.close()
+    return src, obs, before, env.obs_dim
 
-    dst = widen_checkpoint(src, tmp_path / "b", env.obs_dim + N_RAYS)
-    wide_env = AmpPathEnv(2, ref, PathTaskConfig(stage=3, obstacle_obs=True, boxes_per_patch=2, pair_patches=True),
+
+def test_widened_checkpoint_loads_and_acts_the_same(tmp_path):
+    src, obs, before, obs_dim = _small_checkpoint(tmp_path / "a")
+
+    dst = widen_checkpoint(src, tmp_path / "b", obs_dim + N_RAYS)
+    wide_env = AmpPathEnv(2, locomotion_reference(), PathTaskConfig(stage=3, obstacle_obs=True, boxes_per_patch=2, pair_patches=True),
                           seed=0)
-    assert wide_env.obs_dim == env.obs_dim + N_RAYS
-    wide = AmpLearner(wide_env, cfg)
+    assert wide_env.obs_dim == obs_dim + N_RAYS
+    wide = AmpLearner(wide_env, _CFG)
     wide.load_checkpoint(dst)
     rays = np.random.default_rng(0).random((2, N_RAYS)).astype(np.float32)
     after = wide.act(np.concatenate([obs, rays], axis=1))
@@ -49,17 +55,7 @@ def test_widen_cli_takes_a_split_training_folder_and_exports_the_policy(tmp_path
     from navzoo.agents.amp.train import export_from_checkpoint
     from navzoo.agents.amp.widen import main
 
-    ref = locomotion_reference()
-    cfg = AmpConfig(seed=0, actor_hidden=(32,), critic_hidden=(32,), disc_hidden=(32,), rollout_steps=4,
-                    minibatch_size=8)
-    env = AmpPathEnv(2, ref, PathTaskConfig(stage=1), seed=0)
-    learner = AmpLearner(env, cfg)
-    learner.collect(4)
-    learner.update()
-    src = learner.save_checkpoint(tmp_path / "a")
-    obs = env.reset(seed=1)
-    narrow_dim = env.obs_dim
-    env.close()
+    src, obs, _, narrow_dim = _small_checkpoint(tmp_path / "a")
     # a committed training folder: the state in parts, as the device tool returns it
     folder = tmp_path / "training_run"
     folder.mkdir()
