@@ -21,6 +21,12 @@ for the right and left foot along the heading (``right_foot_fwd``, ``left_foot_f
 +0.70 / -0.51, the clips 0 by definition), their difference ``foot_split``, and the realism MMD of the tracking
 poses against the clips (``tracking_mmd``, every control step).
 
+With ``--export-dir DIR`` the sources are only exported, each to ``DIR/policy_<source>`` (characters other than
+letters, digits, ``.``, ``_``, ``-`` replaced by ``_``), for the POLICY field of ``scripts/amp_target_ablation.py``:
+
+    python scripts/amp_checkpoint_tracking.py --export-dir /tmp/lin git:3ea0b4b:training/amp
+    # -> /tmp/lin/policy_git_3ea0b4b_training_amp
+
 Each source is one of
 - a training folder as committed (``name``, ``meta.json``, ``state.pt.part-*``): its checkpoint is exported;
 - ``git:REV:FOLDER``: the same folder as it was at commit REV (earlier checkpoints of a run);
@@ -38,6 +44,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -82,6 +90,26 @@ def materialise(source: str, work: Path) -> Path:
     return export_from_checkpoint(ckpt, work / f"policy_{path.name}")
 
 
+def export_name(source: str) -> str:
+    """The folder name of ``source``'s exported policy under ``--export-dir``: ``policy_`` and the source with every
+    character other than letters, digits, ``.``, ``_`` and ``-`` replaced by ``_`` (``git:3ea0b4b:training/amp`` ->
+    ``policy_git_3ea0b4b_training_amp``)."""
+    return "policy_" + re.sub(r"[^A-Za-z0-9._-]", "_", source.strip("/"))
+
+
+def export(source: str, export_dir: Path) -> Path:
+    """``source`` (module doc) as an exported policy folder ``export_dir / export_name(source)``, kept; refuses to
+    overwrite a folder that is there already."""
+    dest = export_dir / export_name(source)
+    if dest.exists():
+        raise SystemExit(f"{dest} exists: remove it or choose another --export-dir")
+    export_dir.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=export_dir) as tmp:
+        policy = materialise(source, Path(tmp))
+        shutil.copytree(policy, dest)
+    return dest
+
+
 def stance(policy: Path, walk: float = 0.9) -> dict:
     """The ``stance`` protocol (module doc): whole-clip tracking, then the walking poses' foot bias and MMD, with the
     posture bias of ``scripts/amp_realism_by_speed.py`` (the realism study's own definition)."""
@@ -114,9 +142,18 @@ def stance(policy: Path, walk: float = 0.9) -> dict:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("sources", nargs="+")
-    ap.add_argument("--out", required=True, help="JSON lines, appended; sources already there are skipped")
+    ap.add_argument("--out", help="JSON lines, appended; sources already there are skipped")
     ap.add_argument("--protocol", choices=("tracking", "tracking_full", "path3", "stance"), default="tracking")
+    ap.add_argument("--export-dir", metavar="DIR",
+                    help="only export: write each source's policy to DIR/policy_<name> (for other scripts' POLICY "
+                         "arguments, e.g. scripts/amp_target_ablation.py) and print the folders; no protocol runs")
     args = ap.parse_args(argv)
+    if args.export_dir:
+        for source in args.sources:
+            print(export(source, Path(args.export_dir)))
+        return 0
+    if not args.out:
+        ap.error("--out is required unless --export-dir is given")
     out = Path(args.out)
     done = set()
     if out.exists():

@@ -125,3 +125,18 @@ def test_the_stance_protocol_measures_the_feet_offset_from_the_clips(script, tmp
             assert row["tracking_mmd"] < 0.05
         else:
             assert row["tracking_mmd"] > 0.05
+
+
+def test_export_dir_keeps_each_sources_policy_under_a_stable_name(script, tmp_path):
+    """--export-dir writes the exported policy of every source under DIR/policy_<source>, runs no protocol, and refuses
+    to overwrite; an exported policy folder is copied as it is."""
+    shipped = ROOT / "policies" / "amp_pedestrian"
+    assert script.export_name("git:3ea0b4b:training/amp") == "policy_git_3ea0b4b_training_amp"
+    assert script.main(["--export-dir", str(tmp_path / "x"), str(shipped)]) == 0
+    dest = tmp_path / "x" / script.export_name(str(shipped))
+    assert (dest / "policy.pt").read_bytes() == (shipped / "policy.pt").read_bytes()
+    assert sorted(p.name for p in (tmp_path / "x").iterdir()) == [dest.name]  # the work folder is gone
+    with pytest.raises(SystemExit, match="exists"):
+        script.main(["--export-dir", str(tmp_path / "x"), str(shipped)])
+    with pytest.raises(SystemExit):  # neither --out nor --export-dir
+        script.main([str(shipped)])
