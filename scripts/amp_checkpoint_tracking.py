@@ -177,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
                 shown = ("right_foot_fwd", "left_foot_fwd", "foot_split", "tracking_mmd", "clip_success_rate")
             else:
                 result = evaluate(str(policy), envs=32, seconds=60.0, stage=3, seed=0)
-                shown = ("episodes_ended", "falls", "mean_path_error_m")
+                shown = ("episodes_ended", "falls", "mean_path_error_m", "reward_per_step")
             row = {"source": source, "protocol": args.protocol, "trained_iterations": config.get("trained_iterations"),
                    "trained_steps": config.get("trained_steps"), **result}
             row["policy_dir"] = str(policy) if not str(policy).startswith(tmp) else None

@@ -147,6 +147,10 @@ def test_shipped_policy_loads_and_walks_a_path_briefly():
     policy_dir = Path(__file__).resolve().parents[2] / "policies" / "amp_pedestrian"
     result = evaluate(str(policy_dir), envs=2, seconds=2.0, stage=1)
     assert result["falls"] == 0 and result["mean_path_error_m"] < 0.5
+    parts = result["reward_per_step"]
+    assert set(parts) == {"track", "energy", "direction", "stance"}
+    assert 0.5 < parts["track"] <= 1.0 and parts["energy"] < 0.0  # close to its path, and joints do work
+    assert -1.0 <= parts["direction"] <= 0.0 and parts["stance"] <= 0.0
 
 
 def test_export_from_a_checkpoint_of_another_env_size(tmp_path):

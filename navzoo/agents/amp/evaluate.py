@@ -48,8 +48,13 @@ def _evaluate(policy_dir: str, envs: int, seconds: float, stage: int, seed: int,
     lengths: list[int] = []
     falls = lost = 0
     errors = []
-    for _ in range(int(round(seconds * task.control_hz))):
+    parts = ("track", "energy", "direction", "stance")
+    reward_sums = dict.fromkeys(parts, 0.0)
+    n_steps = int(round(seconds * task.control_hz))
+    for _ in range(n_steps):
         obs, _, term, trunc, info = env.step(policy(obs))
+        for part in parts:  # every body's step, the last one of an episode too
+            reward_sums[part] += float(np.sum(info[f"reward/{part}"]))
         steps += 1
         done = term | trunc
         running = ~done
@@ -68,6 +73,9 @@ def _evaluate(policy_dir: str, envs: int, seconds: float, stage: int, seed: int,
         "lost_path": lost,
         "reached_time_limit": len(full),
         "mean_path_error_m": float(np.mean(errors)) if errors else float("nan"),
+        # the paper's task-reward terms per body step (r_tau, r_e, r_d) and the unweighted stance penalty, to see
+        # which term a policy's task reward is short in
+        "reward_per_step": {part: total / (envs * n_steps) for part, total in reward_sums.items()},
         "envs": envs,
         "seconds": seconds,
         "stage": stage,
