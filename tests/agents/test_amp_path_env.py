@@ -151,6 +151,11 @@ def test_shipped_policy_loads_and_walks_a_path_briefly():
     assert set(parts) == {"track", "energy", "direction", "stance"}
     assert 0.5 < parts["track"] <= 1.0 and parts["energy"] < 0.0  # close to its path, and joints do work
     assert -1.0 <= parts["direction"] <= 0.0 and parts["stance"] <= 0.0
+    # training's exploration noise on the PD targets makes the joints work much harder
+    noisy = evaluate(str(policy_dir), envs=2, seconds=2.0, stage=1, action_std=0.055)
+    assert noisy["action_std"] == 0.055 and noisy["reward_per_step"]["energy"] < 2 * parts["energy"]
+    with pytest.raises(ValueError, match="action_std"):
+        evaluate(str(policy_dir), envs=2, seconds=0.1, stage=1, action_std=-0.1)
 
 
 def test_export_from_a_checkpoint_of_another_env_size(tmp_path):

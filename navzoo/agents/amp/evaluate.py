@@ -24,17 +24,23 @@ from navzoo.torch_threads import one_torch_thread
 
 def evaluate(policy_dir: str, envs: int = 16, seconds: float = 30.0, stage: int = 1, seed: int = 123,
              pd_mode: str = "motor", steering_trim: float | None = None, symmetric: bool | None = None,
-             door_prob: float = 0.0) -> dict[str, Any]:
+             door_prob: float = 0.0, action_std: float = 0.0) -> dict[str, Any]:
     """``steering_trim`` / ``symmetric`` override the policy's own settings (None keeps them; see
     :meth:`navzoo.agents.amp.checkpoint.AmpPolicy.override`); ``door_prob`` (stage 3, a policy with
-    obstacle rays): share of patches split by a wall with a door, as in training. Runs on one torch thread
+    obstacle rays): share of patches split by a wall with a door, as in training. ``action_std`` > 0 adds Gaussian
+    noise of that std to every action before it is clipped, as training's exploration does (the policy's
+    ``ppo/action_std`` in the training metrics), drawn from ``seed``. Runs on one torch thread
     (:func:`navzoo.torch_threads.one_torch_thread`), so the figures do not depend on the caller's thread count."""
     with one_torch_thread():
-        return _evaluate(policy_dir, envs, seconds, stage, seed, pd_mode, steering_trim, symmetric, door_prob)
+        return _evaluate(policy_dir, envs, seconds, stage, seed, pd_mode, steering_trim, symmetric, door_prob,
+                         action_std)
 
 
 def _evaluate(policy_dir: str, envs: int, seconds: float, stage: int, seed: int, pd_mode: str,
-              steering_trim: float | None, symmetric: bool | None, door_prob: float) -> dict[str, Any]:
+              steering_trim: float | None, symmetric: bool | None, door_prob: float,
+              action_std: float) -> dict[str, Any]:
+    if not (np.isfinite(action_std) and action_std >= 0.0):
+        raise ValueError(f"action_std must be a finite number >= 0, got {action_std!r}")
     policy = load_policy(policy_dir)
     if steering_trim is not None or symmetric is not None:
         policy.override(steering_trim, symmetric)
@@ -51,8 +57,12 @@ def _evaluate(policy_dir: str, envs: int, seconds: float, stage: int, seed: int,
     parts = ("track", "energy", "direction", "stance")
     reward_sums = dict.fromkeys(parts, 0.0)
     n_steps = int(round(seconds * task.control_hz))
+    noise = np.random.default_rng(seed)
     for _ in range(n_steps):
-        obs, _, term, trunc, info = env.step(policy(obs))
+        actions = policy(obs)
+        if action_std > 0.0:
+            actions = actions + action_std * noise.standard_normal(actions.shape)
+        obs, _, term, trunc, info = env.step(actions)
         for part in parts:  # every body's step, the last one of an episode too
             reward_sums[part] += float(np.sum(info[f"reward/{part}"]))
         steps += 1
@@ -80,6 +90,7 @@ def _evaluate(policy_dir: str, envs: int, seconds: float, stage: int, seed: int,
         "seconds": seconds,
         "stage": stage,
         "door_prob": task.door_prob,
+        "action_std": action_std,
     }
 
 
@@ -94,11 +105,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--symmetric", action="store_true", help="make the policy left/right symmetric")
     parser.add_argument("--door-prob", type=float, default=0.0,
                         help="stage 3: share of patches split by a wall with a door")
+    parser.add_argument("--action-std", type=float, default=0.0,
+                        help="Gaussian noise added to the actions, as in training (0: the policy's mean action)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     result = evaluate(args.policy_dir, args.envs, args.seconds, args.stage, args.seed,
                       steering_trim=args.steering_trim, symmetric=True if args.symmetric else None,
-                      door_prob=args.door_prob)
+                      door_prob=args.door_prob, action_std=args.action_std)
     print(json.dumps(result) if args.json else result)
     return 0
 
