@@ -39,7 +39,8 @@ def test_the_path_task_protocol_has_its_own_rows(script, tmp_path, monkeypatch):
                                                                "max_pos_error_m": 0.3, "mean_rot_error_rad": 0.4})
     calls = []
     monkeypatch.setattr(script, "evaluate", lambda policy, **kw: calls.append(kw) or {
-        "episodes_ended": 3, "falls": 1, "mean_path_error_m": 0.25})
+        "episodes_ended": 3, "falls": 1, "mean_path_error_m": 0.25,
+        "reward_per_step": {"track": 0.8, "energy": -0.1, "direction": 0.0, "stance": 0.0}})
     policy = str(ROOT / "policies" / "amp_pedestrian")
     out = tmp_path / "rows.jsonl"
     assert script.main([policy, "--out", str(out)]) == 0
@@ -47,6 +48,7 @@ def test_the_path_task_protocol_has_its_own_rows(script, tmp_path, monkeypatch):
     assert script.main([policy, "--out", str(out), "--protocol", "path3"]) == 0  # skipped
     rows = [json.loads(line) for line in out.read_text().splitlines()]
     assert [r["protocol"] for r in rows] == ["tracking", "path3"] and rows[1]["falls"] == 1
+    assert rows[1]["reward_per_step"]["track"] == 0.8
     assert calls == [{"envs": 32, "seconds": 60.0, "stage": 3, "seed": 0}]
 
 
