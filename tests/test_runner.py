@@ -281,3 +281,28 @@ def test_cli_bad_input_exits_2_naming_the_problem(tmp_path, capsys, args, needle
 def test_report_of_a_missing_run_exits_2(tmp_path, capsys):
     assert main(["report", str(tmp_path)]) == 2
     assert "episodes.jsonl" in capsys.readouterr().err
+
+
+def test_a_diffusion_crowd_is_benchmarked_the_same_in_and_out_of_worker_processes(tmp_path):
+    """``--crowd diffusion``: the shipped trajectory diffusion model plans the people; the episode (torch
+    sampling included) is the same run in this process and in a worker."""
+    spec = resolve_spec(scenes="corridor", methods="orca", crowd="diffusion", humans="3", episodes=1, max_steps=24,
+                        save_trajectories=1)[0]
+    run_benchmark(spec, tmp_path / "in_process", workers=0, progress=False)
+    run_benchmark(spec, tmp_path / "worker", workers=1, progress=False)
+    assert _lines(tmp_path / "in_process") == _lines(tmp_path / "worker")
+    (rec,) = load_episodes(tmp_path / "worker")
+    assert rec["crowd"] == "diffusion" and rec["n_humans"] == 3 and rec["steps"] == 24
+    people = np.load(tmp_path / "worker" / "trajectories" / "orca" / "corridor" / "diffusion_n3_ep0000.npz")["human_pos"]
+    walked = np.linalg.norm(people[-1] - people[0], axis=-1)
+    assert (walked > 0.5).all()  # every person walked on their plan
+
+
+def test_a_diffusion_crowd_without_a_model_is_refused_before_any_episode(tmp_path):
+    empty = tmp_path / "no_model"
+    empty.mkdir()
+    spec = resolve_spec(scenes="corridor", methods="orca", crowd="diffusion", humans="3", episodes=1,
+                        env={"diffusion_model": str(empty)})[0]
+    with pytest.raises(ValueError, match="no_model"):
+        run_benchmark(spec, tmp_path / "run", workers=0, progress=False)
+    assert not (tmp_path / "run" / "episodes.jsonl").exists()

@@ -74,7 +74,10 @@ __all__ = [
 EPISODES_FILE = "episodes.jsonl"
 ERRORS_FILE = "errors.jsonl"
 RUN_FILE = "run.json"
-CROWD_MODELS = ("sfm", "orca", "orca_rvo2")
+# "diffusion": the trajectory diffusion crowd (docs/crowd.md), the env's ``diffusion_model`` or the shipped one.
+# "replay" is not among them: it plays recorded tracks in the recordings' own scenes with their own people, where
+# the runner sets scenes and crowd sizes per cell.
+CROWD_MODELS = ("sfm", "orca", "orca_rvo2", "diffusion")
 # A crowd of pedestrians trained with RLlib (navzoo.rl.train, humans: learn): "rllib:PATH" with PATH a
 # training --out folder, a checkpoint or the "human" module folder. They act on flattened observations.
 LEARNED_CROWD_PREFIX = "rllib:"
@@ -98,7 +101,8 @@ class BenchmarkSpec:
         scenes: scene names (``navzoo scenes``, or ``procedural_rooms_<seed>``...).
         methods: robot policy names (:func:`navzoo.agents.baselines.make_policy`). A ``-holonomic`` or
             ``-diffdrive`` suffix also sets the robot's kinematics for that method.
-        crowds: crowd models of the pedestrians (``sfm``, ``orca``, ``orca_rvo2``), or ``rllib:PATH``:
+        crowds: crowd models of the pedestrians (``sfm``, ``orca``, ``orca_rvo2``, ``diffusion``: the trajectory
+            diffusion crowd, with the env's ``diffusion_model`` or the shipped model), or ``rllib:PATH``:
             pedestrians trained with :mod:`navzoo.rl.train` (the run's ``--out`` folder, a checkpoint or the
             ``human`` module folder); they act on flattened observations, so the env's observation settings
             must be those they were trained with.
@@ -483,6 +487,13 @@ def validate_spec(spec: BenchmarkSpec) -> None:
             except FileNotFoundError as exc:
                 raise ValueError(f"benchmark spec: crowd {crowd!r}: {exc}") from exc
     env = _plain(spec.env)
+    if "diffusion" in spec.crowds:
+        from navzoo.agents.diffusion.crowd import default_model_dir
+
+        folder = Path(env["diffusion_model"]) if env.get("diffusion_model") else default_model_dir()
+        if not (folder / "model.pt").is_file() or not (folder / "config.json").is_file():
+            raise ValueError(f"benchmark spec: crowd 'diffusion' needs a trajectory diffusion model (model.pt + "
+                             f"config.json), none in {folder} (env.diffusion_model, or $NAVZOO_DIFFUSION_MODEL)")
     robot = env.pop("robot", None)
     if robot is not None and not isinstance(robot, Mapping):
         raise ValueError(f"benchmark spec: env.robot must be a mapping of RobotSpec fields, got {robot!r}")
@@ -584,7 +595,17 @@ def artifact_path(task_or_record: EpisodeTask | Mapping[str, Any], suffix: str) 
 
 
 def run_episode(task: EpisodeTask) -> dict[str, Any]:
-    """Run one episode and return its ``episodes.jsonl`` record (writes its npz / mp4 if asked)."""
+    """Run one episode and return its ``episodes.jsonl`` record (writes its npz / mp4 if asked).
+
+    The episode runs on one torch thread, as in the worker processes, so that torch models (the diffusion crowd,
+    learned policies) give the same numbers in this process (``workers=0``) as in any number of workers."""
+    from navzoo.torch_threads import one_torch_thread
+
+    with one_torch_thread():
+        return _run_episode(task)
+
+
+def _run_episode(task: EpisodeTask) -> dict[str, Any]:
     from navzoo.agents.baselines import make_policy
     from navzoo.benchmark.metrics import episode_metrics
 
@@ -1378,7 +1399,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"a named protocol that sets scenes, crowd, people, robot and limits: {', '.join(protocol_names())}")
     parser.add_argument("--scenes", default=None, help="comma-separated scene names, or 'all' (see `navzoo scenes`)")
     parser.add_argument("--methods", default=None, help="comma-separated robot policies (orca, dwa, sfm, pure-pursuit, ...)")
-    parser.add_argument("--crowd", default=None, help="comma-separated crowd models: sfm, orca, orca_rvo2, or "
+    parser.add_argument("--crowd", default=None, help="comma-separated crowd models: sfm, orca, orca_rvo2, diffusion, or "
                         "rllib:PATH (pedestrians trained with navzoo train joint) (default sfm)")
     level = parser.add_mutually_exclusive_group()
     level.add_argument("--density", default=None, help="people per m² of free space (of the circle/square for the CrowdNav protocols), e.g. 0.05,0.15,0.3")
