@@ -293,6 +293,7 @@ def test_a_diffusion_crowd_is_benchmarked_the_same_in_and_out_of_worker_processe
     assert _lines(tmp_path / "in_process") == _lines(tmp_path / "worker")
     (rec,) = load_episodes(tmp_path / "worker")
     assert rec["crowd"] == "diffusion" and rec["n_humans"] == 3 and rec["steps"] == 24
+    assert "people_fallen" not in rec  # kinematic people do not fall
     people = np.load(tmp_path / "worker" / "trajectories" / "orca" / "corridor" / "diffusion_n3_ep0000.npz")["human_pos"]
     walked = np.linalg.norm(people[-1] - people[0], axis=-1)
     assert (walked > 0.5).all()  # every person walked on their plan
@@ -306,3 +307,17 @@ def test_a_diffusion_crowd_without_a_model_is_refused_before_any_episode(tmp_pat
     with pytest.raises(ValueError, match="no_model"):
         run_benchmark(spec, tmp_path / "run", workers=0, progress=False)
     assert not (tmp_path / "run" / "episodes.jsonl").exists()
+
+
+def test_physics_pedestrians_are_benchmarked_with_their_falls_counted(tmp_path):
+    """``env: {human_model: amp}``: the shipped AMP controller walks the people (here on diffusion plans);
+    the records count the people who fell, and a run in a worker repeats the in-process one."""
+    spec = resolve_spec(scenes="corridor", methods="orca", crowd="diffusion", humans="3", episodes=1, max_steps=30,
+                        save_trajectories=1, env={"human_model": "amp"})[0]
+    run_benchmark(spec, tmp_path / "in_process", workers=0, progress=False)
+    run_benchmark(spec, tmp_path / "worker", workers=1, progress=False)
+    assert _lines(tmp_path / "in_process") == _lines(tmp_path / "worker")
+    (rec,) = load_episodes(tmp_path / "worker")
+    assert rec["people_fallen"] == 0 and rec["steps"] == 30  # three people walk a corridor for 3 s without falling
+    people = np.load(tmp_path / "worker" / "trajectories" / "orca" / "corridor" / "diffusion_n3_ep0000.npz")["human_pos"]
+    assert (np.linalg.norm(people[-1] - people[0], axis=-1) > 0.2).all()  # bodies start from rest

@@ -667,6 +667,11 @@ def _run_episode(task: EpisodeTask) -> dict[str, Any]:
             human_vel=hvel, human_yaw=hyaw, reference_path=reference, segments=nav.segments,
         )
         metrics.pop("thresholds", None)  # the same for every episode: in run.json
+        if getattr(nav, "amp", None) is not None:
+            # physics pedestrians (env human_model "amp"): how many fell during the episode, whatever the cause
+            # (a fallen body stays down); an episode that ends at the robot's first contact cannot show a fall
+            # that contact causes later
+            metrics["people_fallen"] = int(np.count_nonzero(nav.human_fallen))
         if task.save_trajectory:
             path = Path(task.out) / "trajectories" / artifact_path(task, ".npz")
             path.parent.mkdir(parents=True, exist_ok=True)
