@@ -321,3 +321,12 @@ def test_physics_pedestrians_are_benchmarked_with_their_falls_counted(tmp_path):
     assert rec["people_fallen"] == 0 and rec["steps"] == 30  # three people walk a corridor for 3 s without falling
     people = np.load(tmp_path / "worker" / "trajectories" / "orca" / "corridor" / "diffusion_n3_ep0000.npz")["human_pos"]
     assert (np.linalg.norm(people[-1] - people[0], axis=-1) > 0.2).all()  # bodies start from rest
+
+
+def test_cli_diffusion_crowd_without_a_model_exits_2(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("NAVZOO_DIFFUSION_MODEL", str(tmp_path / "missing_model"))
+    rc = main(["benchmark", "--scenes", "corridor", "--methods", "orca", "--crowd", "diffusion", "--humans", "3",
+               "--out", str(tmp_path / "run"), "--no-progress"])
+    assert rc == 2
+    assert "missing_model" in capsys.readouterr().err
+    assert not (tmp_path / "run" / "episodes.jsonl").exists()
