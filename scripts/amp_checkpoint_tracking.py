@@ -183,7 +183,7 @@ def main(argv: list[str] | None = None) -> int:
             row["policy_dir"] = str(policy) if not str(policy).startswith(tmp) else None
             with out.open("a") as f:
                 f.write(json.dumps(row) + "\n")
-            print(json.dumps({k: row[k] for k in ("source", "trained_steps", *shown) if k in row}))
+            print(json.dumps({k: row[k] for k in ("source", "trained_steps", *shown)}))
     return 0
 
 

@@ -488,12 +488,13 @@ def validate_spec(spec: BenchmarkSpec) -> None:
                 raise ValueError(f"benchmark spec: crowd {crowd!r}: {exc}") from exc
     env = _plain(spec.env)
     if "diffusion" in spec.crowds:
-        from navzoo.agents.diffusion.crowd import default_model_dir
+        from navzoo.agents.diffusion.crowd import model_dir
 
-        folder = Path(env["diffusion_model"]) if env.get("diffusion_model") else default_model_dir()
-        if not (folder / "model.pt").is_file() or not (folder / "config.json").is_file():
-            raise ValueError(f"benchmark spec: crowd 'diffusion' needs a trajectory diffusion model (model.pt + "
-                             f"config.json), none in {folder} (env.diffusion_model, or $NAVZOO_DIFFUSION_MODEL)")
+        try:
+            model_dir(env.get("diffusion_model"))
+        except FileNotFoundError as exc:
+            raise ValueError(f"benchmark spec: crowd 'diffusion' (env.diffusion_model, or $NAVZOO_DIFFUSION_MODEL): "
+                             f"{exc}") from exc
     robot = env.pop("robot", None)
     if robot is not None and not isinstance(robot, Mapping):
         raise ValueError(f"benchmark spec: env.robot must be a mapping of RobotSpec fields, got {robot!r}")
@@ -667,7 +668,7 @@ def _run_episode(task: EpisodeTask) -> dict[str, Any]:
             human_vel=hvel, human_yaw=hyaw, reference_path=reference, segments=nav.segments,
         )
         metrics.pop("thresholds", None)  # the same for every episode: in run.json
-        if getattr(nav, "amp", None) is not None:
+        if nav.amp is not None:
             # physics pedestrians (env human_model "amp"): how many fell during the episode, whatever the cause
             # (a fallen body stays down); an episode that ends at the robot's first contact cannot show a fall
             # that contact causes later

@@ -45,7 +45,7 @@ from navzoo.forecast import data as fdata
 if TYPE_CHECKING:
     from navzoo.envs.nav_env import NavEnv
 
-__all__ = ["DiffusionCrowd", "default_model_dir"]
+__all__ = ["DiffusionCrowd", "default_model_dir", "model_dir"]
 
 MODEL_DT = 0.4  # s per model step (ETH/UCY protocol)
 MAP_EXTENT = 8.0  # m, side of the occupancy / distance crops
@@ -64,6 +64,17 @@ def default_model_dir() -> Path:
 
     env_dir = os.environ.get("NAVZOO_DIFFUSION_MODEL")
     return Path(env_dir) if env_dir else Path(list(policies.__path__)[0]) / "trajectory_diffusion"
+
+
+def model_dir(model: str | Path | None = None) -> Path:
+    """The folder of an exported trajectory diffusion model (``model``, or :func:`default_model_dir` for None);
+    FileNotFoundError naming it when it lacks ``model.pt`` or ``config.json``."""
+    folder = default_model_dir() if model is None else Path(model)
+    if not (folder / "model.pt").is_file() or not (folder / "config.json").is_file():
+        raise FileNotFoundError(
+            f"no trajectory diffusion model in {folder} (model.pt + config.json); train one with "
+            "`navzoo train diffusion` (docs/crowd.md) or pass its directory")
+    return folder
 
 
 def _ahead_on_path(path: np.ndarray, pos: np.ndarray, distance: float | np.ndarray,
@@ -213,12 +224,7 @@ class DiffusionCrowd:
         if model is None or isinstance(model, (str, Path)):
             from navzoo.agents.diffusion.trainer import load_model
 
-            folder = default_model_dir() if model is None else Path(model)
-            if not (folder / "model.pt").is_file():
-                raise FileNotFoundError(
-                    f"no trajectory diffusion model in {folder} (model.pt + config.json); train one with "
-                    "`navzoo train diffusion` (docs/crowd.md) or pass its directory")
-            model = load_model(folder, device)
+            model = load_model(model_dir(model), device)
         if int(n_samples) < 1:
             raise ValueError(f"n_samples must be >= 1, got {n_samples!r}")
         if not replan_s > 0:
