@@ -175,6 +175,7 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
                        steering_trim=cfg.get("trim"), policy_dir=cfg.get("policy"), crowd_model=crowd,
                        human_model=bodies)
     row.pop("poses")
+    row.pop("walk_kin")  # speed / acceleration / jerk samples: navzoo eval crowd reports them
     return {"config": cfg["name"],
             **{k: cfg[k] for k in (*_PARAMS, "fallen_obstacles")},
             "crowd": crowd, "bodies": bodies, "diffusion_settings": diffusion_settings, "seed": seed, **row}

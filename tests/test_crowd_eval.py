@@ -83,6 +83,36 @@ def test_collision_share_of_two_people_passing():
     assert ce.collision_share(pos, 0.6, present) == (0, T)
 
 
+def test_walked_tracks_split_at_their_gaps_and_end_at_a_fall():
+    """Centres at 30 Hz with NaN while a body is down: no difference is taken across a gap, even a short one
+    (here 1.5 m, under the teleport cut), and a fallen body's track simply ends."""
+    dt = 1.0 / 30.0
+    T = 240  # 8 s
+    t = np.arange(T) * dt
+    walker = np.stack([1.2 * t, np.zeros(T)], axis=1)  # 1.2 m/s throughout
+    gap = np.stack([1.0 * t, np.full(T, 3.0)], axis=1)
+    gap[100:130] = np.nan  # down for 1 s ...
+    gap[130:] += np.array([1.5, 0.0])  # ... and back 1.5 m further on (a respawn, not a step)
+    faller = np.stack([0.8 * t, np.full(T, 6.0)], axis=1)
+    faller[150:] = np.nan  # fell after 5 s and stays down
+    pos = np.stack([walker, gap, faller], axis=1)
+    kin = ce.walked_kinematics(pos, dt)
+    speeds = np.sort(np.unique(np.round(kin["speed"], 6)))
+    np.testing.assert_allclose(speeds, [0.8, 1.0, 1.2], atol=1e-6)  # no spike across the gap
+    np.testing.assert_allclose(kin["accel"], 0.0, atol=1e-9)
+    # points at 0.4 s: 7.97 s -> 20, 3.30 s + 3.63 s -> 9 + 10, 4.97 s -> 13; one speed fewer per piece
+    assert kin["speed"].size == 19 + 8 + 9 + 12
+    hits, total = ce.walked_collisions(pos)
+    assert hits == 0 and total == 3 * T - 30 - (T - 150)  # the fallen and the absent are not counted
+    close = np.stack([walker, walker + np.array([0.3, 0.0])], axis=1)
+    close[:50, 1] = np.nan
+    assert ce.walked_collisions(close, chunk=7) == (2 * (T - 50), 2 * T - 50)
+    with pytest.raises(ValueError, match=r"pos must be \(T, N, 2\)"):
+        ce.walked_kinematics(np.zeros((5, 2)), dt)
+    with pytest.raises(ValueError, match="dt must be > 0"):
+        ce.walked_kinematics(pos, 0.0)
+
+
 def test_distances_of_identical_and_shifted_distributions():
     rng = np.random.default_rng(0)
     a = rng.normal(1.2, 0.2, 5000).clip(0)
@@ -194,9 +224,29 @@ def test_reliability_rows_over_several_seeds_resume_their_scene_runs(tmp_path, m
     monkeypatch.setattr(ce.pedestrians, "follow_scene", lambda *a: pytest.fail(f"ran {a[:4]} again"))
     again = ce.reliability(seeds=[0, 1], resume_prefix=prefix, **kw)["sfm+kinematic"]
     assert again["by_seed"] == whole["by_seed"]
+    assert again["walked"] == whole["walked"]  # the walked kinematics come back from the kept runs too
     monkeypatch.setattr(ce.pedestrians, "follow_scene", real)
     text = ce.markdown({"reliability": {"sfm+kinematic": again}})
     assert "| sfm+kinematic, seed 1 |" in text
     assert f"| sfm+kinematic, one trip per goal | {100 * again['per_goal']['success_rate']:.2f} |" in text
     with pytest.raises(SystemExit, match="not both"):
         ce.main(["--seed", "2", "--seeds", "0,1"])
+
+
+def test_reliability_rows_say_how_their_people_walked():
+    """Every row carries its people's walked kinematics, with the distances to the real samples given; the
+    Markdown shows them under the reliability table."""
+    rng = np.random.default_rng(0)
+    real = {"speed": rng.normal(1.0, 0.2, 500).clip(0), "accel": rng.gamma(2.0, 0.1, 500),
+            "jerk": rng.gamma(2.0, 0.3, 500)}
+    rows = ce.reliability(rows=["sfm+kinematic"], scenes=["station"], seconds=12.0, people=[3], real_kin=real)
+    walked = rows["sfm+kinematic"]["walked"]
+    for q in ("speed", "accel", "jerk"):
+        assert walked["samples"][q] > 0 and walked[f"{q}_w1"] >= 0.0 and 0.0 <= walked[f"{q}_js"] <= 1.0
+    assert 0.3 < walked["speed_mean"] < 2.0
+    assert 0.0 <= walked["collision_rate"] <= 1.0 and walked["person_steps"] > 0
+    no_real = ce.reliability(rows=["sfm+kinematic"], scenes=["station"], seconds=12.0, people=[3])
+    assert no_real["sfm+kinematic"]["walked"]["speed_mean"] == walked["speed_mean"]
+    assert "speed_w1" not in no_real["sfm+kinematic"]["walked"]
+    md = ce.markdown({"reliability": rows})
+    assert "| walked in the reliability runs |" in md and "| sfm+kinematic | " in md

@@ -42,7 +42,10 @@ the 8 scenes with 3-15 people for ``seconds`` each, at 30 Hz. For kinematic bodi
 construction, contacts are geometric (centre within the body radius of a wall; centres closer than
 two radii), the path error of the diffusion crowd is measured to the current point of the person's
 diffusion plan and is not applicable (None) to the social-force crowd, whose success then equals its
-goal rate. The paper's figures are added as reference rows (:data:`PAPER_RELIABILITY`).
+goal rate. The paper's figures are added as reference rows (:data:`PAPER_RELIABILITY`). Each row also
+says how its people walked (``walked``): their centres at every step of the same runs (a fallen body's track
+ends at its fall) go through the realism part's kinematics and distances, so that physics bodies and
+kinematic ones can be compared with the real tracks alike; collisions there count standing people only.
 
 **Cost**: milliseconds per diffusion replan (:meth:`DiffusionCrowd.plan_now`, all pedestrians of a
 world in one batch) for 1, 16 and 64 pedestrians on the CPU (and CUDA when available; median of
@@ -72,7 +75,8 @@ from navzoo.benchmark import pedestrians
 __all__ = [
     "BINS", "CROWDS", "OVERLAP_M", "PAPER_RELIABILITY", "RELIABILITY_ROWS", "STEP",
     "resample", "continuous_pieces", "trim_still_start", "kinematics", "track_kinematics",
-    "collision_share", "distribution_distance", "real_data", "crowd_scene", "realism", "reliability",
+    "collision_share", "walked_kinematics", "walked_collisions", "distribution_distance", "real_data", "crowd_scene",
+    "realism", "reliability",
     "replan_cost", "step_cost", "cost", "evaluate", "markdown", "main", "add_arguments", "run_cli", "row_resume_file",
 ]
 
@@ -181,6 +185,43 @@ def track_kinematics(tracks: Sequence[tuple[np.ndarray, np.ndarray]], step: floa
             for q, v in kinematics(piece, step).items():
                 parts[q].append(v)
     return {q: np.concatenate(v) if v else np.zeros(0) for q, v in parts.items()}
+
+
+def walked_kinematics(pos: np.ndarray, dt: float, step: float = STEP, max_jump: float = MAX_JUMP_M,
+                      min_start_speed: float | None = MIN_START_SPEED) -> dict[str, np.ndarray]:
+    """Pooled speed / acceleration / jerk samples of people's centres recorded every ``dt`` seconds.
+
+    Args:
+        pos: (T, N, 2) centres, NaN where a person is not walking (a fallen body): each person's track is
+            split at its NaN gaps, and no difference is taken across one.
+        dt: seconds between the recorded rows.
+
+    The pieces then go through :func:`track_kinematics` (resampled to ``step``, still start trimmed, cut at
+    jumps)."""
+    pos = np.asarray(pos, dtype=np.float64)
+    if pos.ndim != 3 or pos.shape[-1] != 2:
+        raise ValueError(f"pos must be (T, N, 2), got {pos.shape}")
+    if not dt > 0:
+        raise ValueError(f"dt must be > 0, got {dt!r}")
+    t = np.arange(len(pos)) * float(dt)
+    tracks = []
+    for j in range(pos.shape[1]):
+        ok = ~np.isnan(pos[:, j]).any(axis=1)
+        edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
+        tracks += [(t[a:b], pos[a:b, j]) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= 2]
+    return track_kinematics(tracks, step, max_jump, min_start_speed)
+
+
+def walked_collisions(pos: np.ndarray, threshold: float = OVERLAP_M, chunk: int = 1000) -> tuple[int, int]:
+    """:func:`collision_share` of centres (T, N, 2) with NaN rows for people not walking (not counted, and
+    not counted against), in chunks of ``chunk`` steps (the pairwise distances of a long run at once are big)."""
+    pos = np.asarray(pos, dtype=np.float64)
+    present = ~np.isnan(pos).any(axis=-1)
+    hit = total = 0
+    for a in range(0, len(pos), chunk):
+        h, n = collision_share(np.nan_to_num(pos[a:a + chunk]), threshold, present[a:a + chunk])
+        hit, total = hit + h, total + n
+    return hit, total
 
 
 def collision_share(pos: np.ndarray, threshold: float, present: np.ndarray | None = None) -> tuple[int, int]:
@@ -356,14 +397,16 @@ def crowd_scene(crowd: str, scene: str, n: int, seconds: float, seed: int = 0, d
 
 def realism(crowds: Sequence[str] = DEFAULT_CROWDS, scenes: Sequence[str] = pedestrians.SCENES,
             seconds: float = 200.0, seed: int = 0, workers: int = 1, people: Sequence[int] | None = None,
-            data_dir: str | Path | None = None, dt: float = REALISM_DT) -> dict[str, Any]:
-    """Realism of each crowd against the real tracks (see the module doc): ``{crowd: {...}, "real": {...}}``."""
+            data_dir: str | Path | None = None, dt: float = REALISM_DT,
+            real: tuple[dict[str, np.ndarray], dict[str, Any]] | None = None) -> dict[str, Any]:
+    """Realism of each crowd against the real tracks (see the module doc): ``{crowd: {...}, "real": {...}}``.
+    ``real``: :func:`real_data`'s result, if already loaded (else it is loaded from ``data_dir``)."""
     crowds = _check_crowds(crowds)
     scenes = _check_scenes(scenes)
     people = list(people) if people is not None else pedestrians.people_per_scene(len(scenes))
     if len(people) != len(scenes):
         raise ValueError(f"need one people count per scene, got {len(people)} for {len(scenes)} scenes")
-    real_kin, real_summary = real_data(data_dir)
+    real_kin, real_summary = real if real is not None else real_data(data_dir)
     jobs = [(c, sc, n, seconds, seed, dt) for c in crowds for sc, n in zip(scenes, people, strict=True)]
     rows = pedestrians._pool_map(crowd_scene, jobs, workers)
     out: dict[str, Any] = {}
@@ -395,13 +438,17 @@ def realism(crowds: Sequence[str] = DEFAULT_CROWDS, scenes: Sequence[str] = pede
 def reliability(rows: Sequence[str] = tuple(RELIABILITY_ROWS), scenes: Sequence[str] = pedestrians.SCENES,
                 seconds: float = 200.0, seed: int = 0, workers: int = 1, policy_dir: str | None = None,
                 people: Sequence[int] | None = None, on_row=None, seeds: Sequence[int] | None = None,
-                resume_prefix: str | Path | None = None) -> dict[str, Any]:
+                resume_prefix: str | Path | None = None,
+                real_kin: dict[str, np.ndarray] | None = None) -> dict[str, Any]:
     """The reliability table: :func:`navzoo.benchmark.pedestrians.following` for each row of
     :data:`RELIABILITY_ROWS` named in ``rows`` (``people`` per scene, default 3-15 spread over
     ``scenes``; ``seconds`` each). ``on_row(rows_so_far)`` is called after each row (to save them).
     ``seeds`` (instead of ``seed``): every row over several seeds (rates pooled, ``by_seed`` per seed).
     ``resume_prefix``: each row keeps its finished scene runs in ``<prefix>.<row>.following.jsonl``,
-    so that an interrupted table rerun with the same settings resumes there (the caller removes them)."""
+    so that an interrupted table rerun with the same settings resumes there (the caller removes them).
+    Every row also has ``walked``: how its people walked (physics bodies or kinematic ones), in the terms of the
+    realism part (:func:`navzoo.benchmark.pedestrians.following` with ``walked=True``), with the distances to
+    ``real_kin`` (:func:`real_data`'s samples) when given."""
     scenes = _check_scenes(scenes)
     bad = [r for r in rows if r not in RELIABILITY_ROWS]
     if bad:
@@ -414,7 +461,8 @@ def reliability(rows: Sequence[str] = tuple(RELIABILITY_ROWS), scenes: Sequence[
                                            human_model=body, pose_every=0,
                                            people=None if people is None else list(people),
                                            seeds=None if seeds is None else list(seeds),
-                                           resume=None if resume_prefix is None else row_resume_file(resume_prefix, name))
+                                           resume=None if resume_prefix is None else row_resume_file(resume_prefix, name),
+                                           walked=True, real_kin=real_kin)
         metrics.update({"crowd_model": crowd, "human_model": body, "wall_s": round(time.time() - t0, 1)})
         if body == "kinematic":
             metrics["notes"] = ("kinematic bodies: no falls; contacts geometric (centre within the body radius "
@@ -590,7 +638,8 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
             Path(out).write_text(json.dumps(result, default=_json_default) + "\n")
 
     counts = [people] * len(scenes) if people is not None else None
-    result["realism"] = realism(crowds, scenes, seconds, seed, workers, counts, data_dir)
+    real = real_data(data_dir)
+    result["realism"] = realism(crowds, scenes, seconds, seed, workers, counts, data_dir, real=real)
     save(True)
     rows = [r for r in rows if amp or RELIABILITY_ROWS[r][1] != "amp"]
 
@@ -599,7 +648,7 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
         save(True)
 
     result["reliability"] = reliability(rows, scenes, seconds, seed, workers, policy_dir, counts, row_done, seeds=seeds,
-                                        resume_prefix=out)
+                                        resume_prefix=out, real_kin=real[0])
     result["reliability_paper"] = PAPER_RELIABILITY
     save(True)
     if with_cost:
@@ -672,6 +721,17 @@ def markdown(result: dict[str, Any]) -> str:
         lines.append("Rates in % of ended trips. Kinematic rows: no falls by construction, geometric contacts; "
                      "path error n/a for the social-force crowd. \"One trip per goal\": the same runs with a "
                      "person stuck past its time limit counted once, not once per limit.")
+        walked = {name: row["walked"] for name, row in rel.items() if row.get("walked")}
+        if walked:
+            lines += ["", "| walked in the reliability runs | speed mean (m/s) | W1 | JS | accel mean (m/s²) | W1 | JS "
+                      "| jerk mean (m/s³) | W1 | JS | collision rate (<0.4 m) |", "|---" * 11 + "|"]
+            for name, row in walked.items():
+                cells = []
+                for q in QUANTITIES:
+                    cells += [f(row.get(f"{q}_mean"), 2), f(row.get(f"{q}_w1")), f(row.get(f"{q}_js"))]
+                lines.append(f"| {name} | " + " | ".join(cells) + f" | {f(row.get('collision_rate'), 4)} |")
+            lines += ["", "The people's centres at every step of the reliability runs (a fallen body's track ends at its "
+                      "fall), at 0.4 s as in the realism part; W1 and JS against the same real tracks."]
     c = result.get("cost", {})
     if c:
         lines += ["", "| pedestrians | " + " | ".join(k.split("_", 1)[1] + " replan (ms)" for k in ("replan_cpu", "replan_cuda")

@@ -256,6 +256,7 @@ def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str
     a_goal = np.zeros(n, dtype=bool)
     err_sum, err_n = 0.0, 0
     poses: list[np.ndarray] = []
+    walk = [env.pos[h].copy()]  # the walked centres, NaN once a body has fallen
     n_poses = steps = 0
     while not env._needs_reset:
         wrapped.step({})
@@ -270,6 +271,7 @@ def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str
         m_goal |= map_now & live
         a_goal |= agent_now & live
         standing = live & ~fallen
+        walk.append(np.where(fallen[:, None], np.nan, env.pos[h]))
         target = target_points(env) if has_target else None
         err = None
         if target is not None:
@@ -289,6 +291,11 @@ def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str
             _count_goal_trip(by_goal, outcome, m_goal, a_goal, j)
     for j in trips.finish():
         _count_goal_trip(by_goal, "timeout", m_goal, a_goal, j)
+    from navzoo.benchmark.crowd_eval import walked_collisions, walked_kinematics
+
+    walked = np.asarray(walk)
+    walk_kin = walked_kinematics(walked, float(env.config.dt))
+    walk_hits = walked_collisions(walked)
     wrapped.close()
     label = "" if (crowd_model, human_model) == ("sfm", "amp") else f" [{crowd_model}+{human_model}]"
     print(f"following{label} {scene} ({n} pedestrians, {seconds:.0f} s): {ended} in {time.time() - t0:.0f} s",
@@ -296,9 +303,10 @@ def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str
     return {
         "scene": scene, "pedestrians": n, **ended, "map_trips": map_trips, "agent_trips": agent_trips,
         "err_sum": err_sum, "err_n": err_n, "path_error": has_target, "running": int((~done).sum()),
-        "by_goal": by_goal,
+        "by_goal": by_goal, "walk_collisions": list(walk_hits),
         "wall_s": round(time.time() - t0, 1),
         "poses": np.concatenate(poses) if poses else np.zeros((0, realism.POSE_DIM)),
+        "walk_kin": walk_kin,
     }
 
 
@@ -335,7 +343,9 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
               human_model: str = "amp", pose_every: int = 1,
               people: list[int] | None = None,
               seeds: list[int] | None = None,
-              resume: str | Path | None = None) -> tuple[dict[str, Any], np.ndarray]:
+              resume: str | Path | None = None,
+              walked: bool = False,
+              real_kin: dict[str, np.ndarray] | None = None) -> tuple[dict[str, Any], np.ndarray]:
     """Trip outcomes of AMP pedestrians in ``scenes`` (3-15 people, one process per scene with
     ``workers`` > 1); returns (metrics, poses (M, 45) of the standing pedestrians, for realism).
 
@@ -354,6 +364,13 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
     ``resume``: a JSON-lines file that keeps every finished (scene, seed) run as it ends (its poses in
     ``<resume>.poses/``). Rerun with the same settings, the runs found there are not run again; a file
     of other settings is refused. :func:`evaluate` uses ``<out>.following.jsonl`` and removes it when done.
+
+    ``walked=True`` adds ``metrics["walked"]``: how the people walked, from their centres at every step (a fallen
+    body's track ends at its fall), pooled over all runs, in the terms of the crowd realism
+    (:mod:`navzoo.benchmark.crowd_eval`): speed, acceleration and jerk means and medians at 0.4 s, with the
+    1-Wasserstein distance and Jensen-Shannon divergence to ``real_kin`` (the real samples of
+    :func:`navzoo.benchmark.crowd_eval.real_data`) when given, and the person-person collision rate (centres
+    closer than 0.4 m, standing people only).
     """
     if crowd_model not in ("sfm", "orca", "orca_rvo2", "diffusion"):
         raise ValueError(f"crowd_model must be 'sfm', 'orca', 'orca_rvo2' or 'diffusion', got {crowd_model!r}")
@@ -368,17 +385,34 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
     settings = _settings(scenes, counts, seconds, run_seeds, policy_dir, crowd_model, human_model, pose_every)
     rows = _run_jobs(jobs, workers, resume, settings if seeds is None else settings | {"multi_seed": True})
     if seeds is None:
-        return _following_metrics(rows, seconds), np.concatenate([r["poses"] for r in rows])
+        metrics = _following_metrics(rows, seconds)
+        if walked:
+            metrics["walked"] = _walked_metrics(rows, real_kin)
+        return metrics, np.concatenate([r["poses"] for r in rows])
     seeds = run_seeds
     for job, row in zip(jobs, rows, strict=True):
         row["seed"] = job[3]
     metrics = _following_metrics(rows, seconds)
+    if walked:
+        metrics["walked"] = _walked_metrics(rows, real_kin)
     per_seed = [_following_metrics([r for r in rows if r["seed"] == sd], seconds) for sd in seeds]
     metrics["seeds"] = list(seeds)
     metrics["by_seed"] = [{"seed": sd, **{k: m[k] for k in _SEED_KEYS}} for sd, m in zip(seeds, per_seed, strict=True)]
     rates = [m["success_rate"] for m in per_seed]
     metrics["success_rate_seed_sd"] = float(np.std(rates, ddof=1)) if len(rates) > 1 else None
     return metrics, np.concatenate([r["poses"] for r in rows if r["seed"] == seeds[0]])
+
+
+def _walked_metrics(rows: list[dict[str, Any]], real_kin: dict[str, np.ndarray] | None) -> dict[str, Any]:
+    """The walked kinematics and person-person collisions of ``rows`` pooled (see :func:`following`)."""
+    from navzoo.benchmark import crowd_eval
+
+    kin = {q: np.concatenate([r["walk_kin"][q] for r in rows]) for q in crowd_eval.QUANTITIES}
+    out = crowd_eval._summary(kin, real_kin)
+    hit, total = (sum(r["walk_collisions"][i] for r in rows) for i in (0, 1))
+    out["collision_rate"] = hit / max(total, 1)
+    out["person_steps"] = total
+    return out
 
 
 def _settings(scenes, counts, seconds, seeds, policy_dir, crowd_model, human_model, pose_every) -> dict[str, Any]:
@@ -433,9 +467,13 @@ def _run_jobs(jobs: list[tuple], workers: int, resume: str | Path | None, settin
             raise ValueError(f"{resume} holds an interrupted run with other settings ({', '.join(diff)}); rerun with "
                              "the same settings to resume it, or use another --out (or delete the file)")
         for row in good[1:]:
-            f = poses_dir / f"{row['scene']}_{row['pedestrians']}_seed{row['job_seed']}.npy"
-            if f.is_file():
-                done[(row["scene"], row["pedestrians"], row["job_seed"])] = row | {"poses": np.load(f)}
+            stem = poses_dir / f"{row['scene']}_{row['pedestrians']}_seed{row['job_seed']}"
+            f, w = stem.with_suffix(".npy"), stem.with_name(stem.name + "_walk.npz")
+            if f.is_file() and w.is_file() and "walk_collisions" in row:  # older files lack the walked tracks: rerun
+                with np.load(w) as kin:
+                    walk_kin = {k: kin[k] for k in kin.files}
+                done[(row["scene"], row["pedestrians"], row["job_seed"])] = row | {"poses": np.load(f),
+                                                                                     "walk_kin": walk_kin}
         resume.write_text("".join(json.dumps(r) + "\n" for r in good[:1] + [
             r for r in good[1:] if (r["scene"], r["pedestrians"], r["job_seed"]) in done]))
     else:
@@ -450,9 +488,11 @@ def _run_jobs(jobs: list[tuple], workers: int, resume: str | Path | None, settin
 
     def keep(i: int, row: dict[str, Any]) -> None:
         sc, n, sd = keys[i]
-        np.save(poses_dir / f"{sc}_{n}_seed{sd}.npy", row["poses"])  # before its line: a listed row has its poses
+        # the arrays before the row's line: a listed row has its poses and walked kinematics
+        np.save(poses_dir / f"{sc}_{n}_seed{sd}.npy", row["poses"])
+        np.savez(poses_dir / f"{sc}_{n}_seed{sd}_walk.npz", **row["walk_kin"])
         with resume.open("a") as fh:
-            fh.write(json.dumps({k: v for k, v in row.items() if k != "poses"} | {"job_seed": sd},
+            fh.write(json.dumps({k: v for k, v in row.items() if k not in ("poses", "walk_kin")} | {"job_seed": sd},
                                 default=lambda v: v.item() if isinstance(v, np.generic) else str(v)) + "\n")
         done[keys[i]] = row | {"job_seed": sd}
 
