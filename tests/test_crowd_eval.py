@@ -161,6 +161,7 @@ def test_each_reliability_row_is_saved_as_it_finishes(tmp_path, monkeypatch):
         return {"success_rate": 0.5, "fall_rate": 0.0, "trips": 2}, None
 
     monkeypatch.setattr(ce, "realism", lambda *a, **k: {})
+    monkeypatch.setattr(ce, "real_data", lambda *a, **k: ({}, {}))  # no ETH/UCY data needed without the realism part
     monkeypatch.setattr(ce.pedestrians, "following", fake_following)
     out = tmp_path / "crowd.json"
     with pytest.raises(KeyboardInterrupt):
