@@ -467,8 +467,7 @@ def _run_jobs(jobs: list[tuple], workers: int, resume: str | Path | None, settin
             raise ValueError(f"{resume} holds an interrupted run with other settings ({', '.join(diff)}); rerun with "
                              "the same settings to resume it, or use another --out (or delete the file)")
         for row in good[1:]:
-            stem = poses_dir / f"{row['scene']}_{row['pedestrians']}_seed{row['job_seed']}"
-            f, w = stem.with_suffix(".npy"), stem.with_name(stem.name + "_walk.npz")
+            f, w = _run_arrays(poses_dir, row["scene"], row["pedestrians"], row["job_seed"])
             if f.is_file() and w.is_file() and "walk_collisions" in row:  # older files lack the walked tracks: rerun
                 with np.load(w) as kin:
                     walk_kin = {k: kin[k] for k in kin.files}
@@ -489,8 +488,9 @@ def _run_jobs(jobs: list[tuple], workers: int, resume: str | Path | None, settin
     def keep(i: int, row: dict[str, Any]) -> None:
         sc, n, sd = keys[i]
         # the arrays before the row's line: a listed row has its poses and walked kinematics
-        np.save(poses_dir / f"{sc}_{n}_seed{sd}.npy", row["poses"])
-        np.savez(poses_dir / f"{sc}_{n}_seed{sd}_walk.npz", **row["walk_kin"])
+        poses_file, walk_file = _run_arrays(poses_dir, sc, n, sd)
+        np.save(poses_file, row["poses"])
+        np.savez(walk_file, **row["walk_kin"])
         with resume.open("a") as fh:
             fh.write(json.dumps({k: v for k, v in row.items() if k not in ("poses", "walk_kin")} | {"job_seed": sd},
                                 default=lambda v: v.item() if isinstance(v, np.generic) else str(v)) + "\n")
@@ -504,6 +504,12 @@ def _run_jobs(jobs: list[tuple], workers: int, resume: str | Path | None, settin
             for i, row in pool.imap_unordered(_follow_job, todo):
                 keep(i, row)
     return [{k: v for k, v in done[k_].items() if k != "job_seed"} for k_ in keys]
+
+
+def _run_arrays(poses_dir: Path, scene: str, n: int, seed: int) -> tuple[Path, Path]:
+    """Where :func:`_run_jobs` keeps a finished run's poses (.npy) and walked kinematics (.npz)."""
+    stem = f"{scene}_{n}_seed{seed}"
+    return poses_dir / f"{stem}.npy", poses_dir / f"{stem}_walk.npz"
 
 
 def remove_resume_files(resume: Path) -> None:
