@@ -73,6 +73,11 @@ def build_parser() -> argparse.ArgumentParser:
     avg.add_argument("policies", nargs="+", metavar="POLICY_DIR", help="exported AMP policy folders (two or more)")
     avg.add_argument("--weights", default=None, metavar="W1,W2,...", help="averaging weights (default: equal)")
     avg.add_argument("--out", required=True, help="folder of the averaged policy (config.json + policy.pt)")
+    blend = tsub.add_parser(
+        "amp-blend", help="blend exported AMP policies in action space: the weighted mean of their PD targets")
+    blend.add_argument("policies", nargs="+", metavar="POLICY_DIR", help="exported AMP policy folders (two or more)")
+    blend.add_argument("--weights", default=None, metavar="W1,W2,...", help="blending weights (default: equal)")
+    blend.add_argument("--out", required=True, help="folder of the blend (a config.json naming its components)")
     from navzoo.agents.diffusion.train import add_arguments as add_diffusion_arguments
 
     add_diffusion_arguments(tsub.add_parser(
@@ -292,6 +297,18 @@ def _train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         except (ValueError, CheckpointError) as e:
             parser.error(f"train amp-average: {e}")
         print(json.dumps({"policy": str(out), "averaged_from": json.loads((out / "config.json").read_text())["averaged_from"]}))
+        return 0
+    if args.train_command == "amp-blend":
+        from navzoo.agents.amp.blend import write_blend
+        from navzoo.agents.amp.checkpoint import CheckpointError
+
+        try:
+            weights = None if args.weights is None else [float(x) for x in args.weights.split(",")]
+            cfg_path = write_blend(args.policies, args.out, weights)
+        except (ValueError, CheckpointError) as e:
+            parser.error(f"train amp-blend: {e}")
+        print(json.dumps({"policy": str(cfg_path.parent),
+                          "components": json.loads(cfg_path.read_text())["components"]}))
         return 0
     if args.train_command == "diffusion":
         from navzoo.agents.diffusion.train import run_cli as run_diffusion

@@ -440,7 +440,8 @@ class AmpPolicy:
 
 
 def load_policy(path: str | os.PathLike[str], device: str = "cpu") -> Callable[[np.ndarray], np.ndarray]:
-    """Load a policy written by ``AmpLearner.export_policy`` (a directory, or its ``config.json``).
+    """Load a policy written by ``AmpLearner.export_policy`` (a directory, or its ``config.json``), or a
+    blend of such policies (:mod:`navzoo.agents.amp.blend`).
 
     Verifies the format tag and the sha256 of the weights before reading them with
     ``weights_only=True``; raises :class:`CheckpointError` naming the file otherwise.
@@ -450,6 +451,10 @@ def load_policy(path: str | os.PathLike[str], device: str = "cpu") -> Callable[[
         root = root.parent
     cfg_path = root / POLICY_CONFIG
     cfg = _read_json(cfg_path, "policy config")
+    from navzoo.agents.amp.blend import BLEND_FORMAT, load_blend
+
+    if cfg.get("format") == BLEND_FORMAT:
+        return load_blend(root, cfg, device=device)
     if cfg.get("format") != POLICY_FORMAT or cfg.get("version") != POLICY_VERSION:
         raise CheckpointError(
             f"{cfg_path}: not a navzoo AMP policy v{POLICY_VERSION} "
