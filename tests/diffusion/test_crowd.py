@@ -8,7 +8,7 @@ import torch
 from pettingzoo.test import parallel_api_test
 
 from navzoo.agents.crowd import CrowdPolicy
-from navzoo.agents.diffusion.crowd import DiffusionCrowd, _ahead_from_nearest, _ahead_on_path
+from navzoo.agents.diffusion.crowd import DiffusionCrowd, _ahead_from_nearest, _ahead_on_path, _in_sight
 from navzoo.agents.diffusion.model import DiffusionConfig, TrajectoryDiffusion
 from navzoo.agents.diffusion.trainer import TrainConfig, export, train
 from navzoo.envs.nav_env import NavEnv
@@ -52,6 +52,48 @@ def test_target_is_measured_from_the_nearest_path_point_not_a_missed_waypoint():
     np.testing.assert_allclose(_ahead_from_nearest(path, 9, np.array([9.0, 0.2]), 3.0, extend=True), [12.0, 0.0])
     # A one-point path (the goal): toward it from the position.
     np.testing.assert_allclose(_ahead_from_nearest(np.array([[4.0, 0.0]]), 0, np.zeros(2), 1.0), [1.0, 0.0])
+
+
+def _wall_sight(y: float = 1.0):
+    """Sight blocked by a wall along y = ``y`` for x < 4 (a U-shaped path: out along y = 0, back along y = 2)."""
+    def sight(pos, pts):
+        pts = np.asarray(pts).reshape(-1, 2)
+        cross = (pos[1] - y) * (pts[:, 1] - y) < 0
+        f = (y - pos[1]) / np.where(pts[:, 1] == pos[1], 1e-12, pts[:, 1] - pos[1])
+        x = pos[0] + f * (pts[:, 0] - pos[0])
+        return ~(cross & (x < 4.0))
+    return sight
+
+
+def test_path_points_are_taken_on_the_persons_side_of_a_wall():
+    # A U-shaped path: out along y = -0.3, up at x = 5, back along y = 1.6; a wall along y = 1 (x < 4) parts
+    # the two legs. A person pushed up against the wall's underside is nearer the back leg (0.61 m) than its own.
+    path = np.array([[0.0, -0.3], [5.0, -0.3], [5.0, 1.6], [0.0, 1.6]])
+    pos = np.array([2.0, 0.99])
+    sight = _wall_sight()
+    old = _ahead_from_nearest(path, 1, pos, 1.0)
+    assert old[1] == pytest.approx(1.6) and not sight(pos, old)[0]  # measured on the leg behind the wall
+    np.testing.assert_allclose(_ahead_from_nearest(path, 1, pos, 1.0, sight=sight), [3.0, -0.3])  # its own leg
+    # never farther than the path stays in sight: up the x = 5 leg, sight ends just below y = 1
+    far = _ahead_from_nearest(path, 1, pos, np.array([1.0, 4.0, 8.0]), sight=sight)
+    np.testing.assert_allclose(far, [[3.0, -0.3], [5.0, 0.7], [5.0, 0.95]], atol=1e-9)
+    assert sight(pos, far).all()
+    # in the open the points are those without sight
+    np.testing.assert_allclose(_ahead_from_nearest(path, 1, np.array([2.0, 0.2]), np.array([1.0, 4.0]), sight=sight),
+                               _ahead_from_nearest(path, 1, np.array([2.0, 0.2]), np.array([1.0, 4.0])))
+    # a person who sees no point of its path gets the points as without sight
+    blind = _ahead_from_nearest(path, 1, pos, 1.0, sight=lambda p, q: np.zeros(len(np.reshape(q, (-1, 2))), bool))
+    np.testing.assert_allclose(blind, old)
+
+
+def test_in_sight_follows_the_scene_walls():
+    env = NavEnv(scene="home", n_robots=0, n_humans=1)
+    env.reset(seed=0)
+    sight = _in_sight(env)
+    pos = np.array([9.3, 5.4])  # under the home's wall at y = 6, away from its door
+    seen = sight(pos, np.array([[9.3, 6.75], [10.5, 5.4], [11.3, 5.0]]))
+    assert seen.tolist() == [False, True, True]
+    env.close()
 
 
 def test_missing_model_is_a_clear_error(tmp_path):

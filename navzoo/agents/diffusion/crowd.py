@@ -25,6 +25,7 @@ path, so that the first plan does not start from rest.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -53,6 +54,8 @@ ACCEL_LIMIT = 1.0  # m/s², largest rise of pace along a physics body's target p
 AMP_SPEED_FACTOR = 1.0  # x v_pref: the fastest pace along a physics body's target path
 TURN_STEP_DEG = 30.0  # past_goal_turn_deg: the turns tried past a goal, in steps of this many degrees
 BODY_MARGIN = 0.0  # m added to each physics body's radius in the people guidance (0.1 measured no better)
+SIGHT_CLEARANCE = 0.05  # m from obstacles that a line of sight keeps (the distance field has 0.1 m cells)
+SIGHT_STEP = 0.25  # m between the path points tested for sight
 
 
 def default_model_dir() -> Path:
@@ -99,33 +102,70 @@ def _ahead_on_path(path: np.ndarray, pos: np.ndarray, distance: float | np.ndarr
     return out[0] if np.ndim(distance) == 0 else out
 
 
-def _nearest_on_polyline(pts: np.ndarray, pos: np.ndarray) -> tuple[int, float, np.ndarray]:
+def _nearest_on_polyline(pts: np.ndarray, pos: np.ndarray,
+                         sight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> tuple[int, float, np.ndarray]:
     """Segment index, fraction along it and the point of the polyline ``pts`` nearest to ``pos``
-    (the farthest along on ties)."""
+    (the farthest along on ties). With ``sight`` (``sight(pos, points (S, 2)) -> (S,) bool``, e.g.
+    :func:`_in_sight`), the nearest point that ``pos`` sees: the nearest of all when it sees none."""
     a, ab = pts[:-1], np.diff(pts, axis=0)
     f = np.clip(np.sum((pos - a) * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), 1e-12), 0.0, 1.0)
     proj = a + f[:, None] * ab
     d = np.linalg.norm(proj - pos, axis=1)
+    if sight is not None:
+        seen = np.asarray(sight(pos, proj), dtype=bool)
+        if seen.any():
+            d = np.where(seen, d, np.inf)
     k = int(np.flatnonzero(d <= d.min() + 1e-9)[-1])
     return k, float(f[k]), proj[k]
 
 
+def _in_sight(env: NavEnv, clearance: float = SIGHT_CLEARANCE, step: float = 0.05
+              ) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """``sight(pos, points (S, 2)) -> (S,) bool``: whether the straight line from ``pos`` to each point keeps
+    ``clearance`` from the scene's obstacles (the distance field of ``env.grid``, sampled every ``step`` m)."""
+
+    def sight(pos: np.ndarray, points: np.ndarray) -> np.ndarray:
+        points = np.asarray(points, dtype=float).reshape(-1, 2)
+        n = max(1, int(np.ceil(np.max(np.linalg.norm(points - pos, axis=1), initial=0.0) / step)))
+        f = np.linspace(0.0, 1.0, n + 1)
+        line = pos[None, None, :] + f[None, :, None] * (points - pos)[:, None, :]  # (S, n+1, 2)
+        return (env.grid.distance_at(line) >= clearance).all(axis=1)
+
+    return sight
+
+
 def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance: float | np.ndarray,
-                        extend: bool = False) -> np.ndarray:
+                        extend: bool = False,
+                        sight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> np.ndarray:
     """The point ``distance`` metres ahead (or the points, for an array of distances) along the A*
     ``path`` from the point of the path nearest to ``pos``, searched from the segment that ends at
-    waypoint ``start`` (the env's current one) on.
+    waypoint ``start`` (the env's current one) on; with ``sight`` (:func:`_in_sight`), from the nearest point
+    that ``pos`` sees (:func:`_nearest_on_polyline`).
 
     Plans stray from the path more than the rule-based crowds, so a person often passes a waypoint
     outside the env's waypoint tolerance and its waypoint index stays behind: measuring from the
-    current waypoint would then put the target behind the person.
+    current waypoint would then put the target behind the person. A person beside a wall is often nearer
+    to a later leg of its path on the wall's other side than to the leg it walks: measured from there, the
+    targets pull it into the wall (``sight`` keeps them on its side; docs/crowd.md, "Path points in sight").
+    With ``sight`` the points also lie no farther along the path than it stays in sight of ``pos`` (tested every
+    :data:`SIGHT_STEP` m): round a corner, the next plan goes on. A person who sees no point of its path gets
+    the points as without ``sight``.
     """
     pts = np.vstack([pos[None], path]) if len(path) == 1 else path
     first = max(0, start - 1) if len(path) > 1 else 0
     if len(pts) - first < 2:
         return _ahead_on_path(path[start:], pos, distance, extend)
-    k, _, proj = _nearest_on_polyline(pts[first:], pos)
-    return _ahead_on_path(pts[first + k + 1:], proj, distance, extend)
+    k, _, proj = _nearest_on_polyline(pts[first:], pos, sight)
+    rest = pts[first + k + 1:]
+    if sight is not None and sight(pos, proj[None])[0]:  # no farther than the path stays in sight
+        d = np.asarray(distance, dtype=float)
+        probe = np.arange(SIGHT_STEP, float(np.max(d, initial=0.0)) + SIGHT_STEP, SIGHT_STEP)
+        if probe.size:
+            seen = np.asarray(sight(pos, _ahead_on_path(rest, proj, probe, extend).reshape(-1, 2)), dtype=bool)
+            if not seen.all():
+                first_hidden = int(np.argmin(seen))
+                distance = np.minimum(d, probe[first_hidden - 1] if first_hidden > 0 else 0.0)
+    return _ahead_on_path(rest, proj, distance, extend)
 
 
 def _clip_to_free(env: NavEnv, start: np.ndarray, end: np.ndarray, clearance: float, step: float = 0.1) -> np.ndarray:
@@ -161,7 +201,8 @@ def _freest_extension(env: NavEnv, start: np.ndarray, end: np.ndarray, clearance
 
 
 def _end_targets(env: NavEnv, people: np.ndarray, horizon_s: float, extend: bool,
-                 past_goal_turn_deg: float = 0.0) -> np.ndarray:
+                 past_goal_turn_deg: float = 0.0,
+                 sight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> np.ndarray:
     """(B, 2) world end targets of the plans of agents ``people``: the point of each one's A* path
     ``v_pref x horizon_s`` ahead (:func:`_ahead_from_nearest`). With ``extend``, a target that would be held at
     the goal is carried past it instead, along the path's last line (or turned by up to ``past_goal_turn_deg``
@@ -171,15 +212,15 @@ def _end_targets(env: NavEnv, people: np.ndarray, horizon_s: float, extend: bool
     would pull it across the walls between the goal and the path (until 2026-12-02 it did, for about half the
     plans in the home; docs/crowd.md, "End targets left on the path").
     """
-    target = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * horizon_s)
-                       for i in people]).reshape(-1, 2)
+    target = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * horizon_s,
+                                           sight=sight) for i in people]).reshape(-1, 2)
     if not extend or len(people) == 0:
         return target
     ends = np.array([env.paths[i][-1] for i in people])  # the goals
     past = np.linalg.norm(target - ends, axis=1) < 1e-9
     if past.any():
         carried = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * horizon_s,
-                                                True) for i in people[past]])
+                                                True, sight) for i in people[past]])
         clearance = float(env.config.human_radius) + 0.1
         target[past] = (_freest_extension(env, ends[past], carried, clearance, past_goal_turn_deg)
                         if past_goal_turn_deg > 0 else _clip_to_free(env, ends[past], carried, clearance))
@@ -210,6 +251,9 @@ class DiffusionCrowd:
             up to where free space ends; so beside furniture it ends a few decimetres past the goal. With this
             above 0 the line may turn by up to this many degrees toward the longest free run
             (:func:`_freest_extension`).
+        path_in_sight: measure the path guidance and the end target from the nearest path point the person
+            sees, and no farther along the path than it stays in sight (:func:`_ahead_from_nearest`); off, from
+            the nearest path point and as far as the pace reaches, walls or not (before 2026-12-02).
         k_neighbors, neighbor_radius: neighbours given to the model.
         seed: seed of the sampling noise (with the env's step count, so replays are exact).
         device: torch device of the model.
@@ -220,7 +264,7 @@ class DiffusionCrowd:
                  agent_weight: float = 10.0, map_weight: float = 10.0, k_neighbors: int = 16,
                  neighbor_radius: float = 10.0, seed: int = 0, device: str = "cpu",
                  path_weight: float = 20.0, blend_s: float = 1.2, smooth_weight: float = 0.0,
-                 agent_buffer: float = 0.2, past_goal_turn_deg: float = 0.0) -> None:
+                 agent_buffer: float = 0.2, past_goal_turn_deg: float = 0.0, path_in_sight: bool = True) -> None:
         if model is None or isinstance(model, (str, Path)):
             from navzoo.agents.diffusion.trainer import load_model
 
@@ -252,6 +296,7 @@ class DiffusionCrowd:
         if not 0 <= past_goal_turn_deg <= 180:
             raise ValueError(f"past_goal_turn_deg must be in [0, 180], got {past_goal_turn_deg!r}")
         self.past_goal_turn_deg = float(past_goal_turn_deg)
+        self.path_in_sight = bool(path_in_sight)
         self.n = 0
 
     # ------------------------------------------------------------------ state
@@ -341,7 +386,8 @@ class DiffusionCrowd:
         # beyond it on the path's last line (else every plan would end at the goal, and each replan
         # would slow down further as the goal comes closer); people who stop there aim at it.
         extend = env.config.human_at_goal != "stop"
-        target_w = _end_targets(env, people, horizon_s, extend, self.past_goal_turn_deg)
+        sight = _in_sight(env) if self.path_in_sight else None
+        target_w = _end_targets(env, people, horizon_s, extend, self.past_goal_turn_deg, sight)
         target = fdata.to_local(target_w[:, None, :], local)[:, 0]
         if self.cfg.goal:  # a goal-conditioned model gets the waypoint as its goal (guidance still pulls)
             batch["goal"] = torch.as_tensor(target, dtype=torch.float32)
@@ -351,8 +397,8 @@ class DiffusionCrowd:
                              valid=torch.as_tensor(~standing))]
         if self.path_weight > 0:  # every step near the A* path at the person's pace (around walls, not through)
             steps = np.arange(1, H + 1) * MODEL_DT
-            along = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * steps)
-                              for i in people])  # (B, H, 2) world, held at the goal
+            along = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * steps,
+                                                  sight=sight) for i in people])  # (B, H, 2) world, held at the goal
             ref = fdata.to_local(along, local)
             costs.append(path_cost(torch.as_tensor(ref, dtype=torch.float32), self.path_weight,
                                    valid=torch.as_tensor(~standing)))
