@@ -66,6 +66,18 @@ def _git_show(rev: str, path: str) -> bytes:
     return subprocess.run(["git", "show", f"{rev}:{path}"], check=True, capture_output=True).stdout
 
 
+def _is_blend(path: Path) -> bool:
+    """Whether ``path`` is a blend of exported policies (:mod:`navzoo.agents.amp.blend`)."""
+    import json
+
+    from navzoo.agents.amp.blend import BLEND_FORMAT
+
+    try:
+        return json.loads((path / "config.json").read_text()).get("format") == BLEND_FORMAT
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
 def materialise(source: str, work: Path) -> Path:
     """An exported policy folder for ``source`` (see the module doc)."""
     if source.startswith("git:"):
@@ -80,12 +92,12 @@ def materialise(source: str, work: Path) -> Path:
             (path / f).write_bytes(_git_show(rev, f"{folder}/{f}"))
     else:
         path = Path(source)
-        if (path / "config.json").exists() and (path / "policy.pt").exists():
+        if (path / "config.json").exists() and ((path / "policy.pt").exists() or _is_blend(path)):
             return path
     try:
         ckpt = join_split_checkpoint(path, work / f"ckpt_{path.name}")
     except FileNotFoundError as e:
-        raise SystemExit(f"{source}: neither an exported policy (config.json, policy.pt) nor a training folder "
+        raise SystemExit(f"{source}: neither an exported policy (config.json, policy.pt), a blend, nor a training folder "
                          f"({e})") from None
     return export_from_checkpoint(ckpt, work / f"policy_{path.name}")
 
