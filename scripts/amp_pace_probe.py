@@ -8,6 +8,9 @@ target stands (< 0.3 m/s), and the body's speed as a share of its target's while
 (>= 0.8 m/s). With ``--bodies kinematic`` the kinematic crowd is measured the same way (no targets).
 
     python scripts/amp_pace_probe.py --scenes station:3,square_crossing:10,lobby:15 --seconds 60 --out F.json
+
+``--path-in-sight 0`` runs the diffusion crowd as before its ``path_in_sight`` setting (docs/crowd.md, "Path points
+in sight").
 """
 
 from __future__ import annotations
@@ -20,10 +23,26 @@ import time
 import numpy as np
 
 
-def probe(scene: str, n: int, seconds: float, seed: int, policy: str | None, crowd: str, bodies: str) -> dict:
+def probe(scene: str, n: int, seconds: float, seed: int, policy: str | None, crowd: str, bodies: str,
+          path_in_sight: bool = True) -> dict:
+    import navzoo.agents.diffusion.crowd as dc
     from navzoo.benchmark.pedestrians import _make, target_points
     from navzoo.torch_threads import one_torch_thread
 
+    init = dc.DiffusionCrowd.__init__
+
+    def init_with_setting(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        self.path_in_sight = path_in_sight
+
+    dc.DiffusionCrowd.__init__ = init_with_setting
+    try:
+        return _probe(scene, n, seconds, seed, policy, crowd, bodies, _make, target_points, one_torch_thread)
+    finally:
+        dc.DiffusionCrowd.__init__ = init
+
+
+def _probe(scene, n, seconds, seed, policy, crowd, bodies, _make, target_points, one_torch_thread) -> dict:
     with one_torch_thread():
         wrapped, env = _make(scene, n, bodies, seconds, seed, policy, crowd)
         R = env.n_robots
@@ -74,13 +93,15 @@ def main() -> int:
     ap.add_argument("--policy", default=None, help="exported AMP policy (default: the shipped one)")
     ap.add_argument("--crowd", default="sfm", choices=("sfm", "orca", "diffusion"))
     ap.add_argument("--bodies", default="amp", choices=("amp", "kinematic"))
+    ap.add_argument("--path-in-sight", type=int, choices=(0, 1), default=1,
+                    help="the diffusion crowd's path_in_sight setting (default 1, on; docs/crowd.md)")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     jobs = []
     for item in args.scenes.split(","):
         name, _, k = item.partition(":")
-        jobs.append((name, int(k), args.seconds, args.seed, args.policy, args.crowd, args.bodies))
+        jobs.append((name, int(k), args.seconds, args.seed, args.policy, args.crowd, args.bodies, bool(args.path_in_sight)))
     if args.workers > 1:
         import multiprocessing as mp
 

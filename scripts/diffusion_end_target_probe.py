@@ -12,6 +12,12 @@ watches every plan. For each person planned, it notes whether the end target is 
 the goal. It also notes how far the old clip would have moved it (``_clip_to_free`` from the goal, as before).
 It prints, per scene, the targets planned, how many were on the path, how many of those the old clip moved by more
 than 0.1 m, and the median of those moves (m).
+
+It also counts the plans whose person is nearer to a point of its path behind a wall than to any point it sees
+(``nearest_hidden``: the nearest path point, searched as ``_ahead_from_nearest`` does, is out of sight by
+``_in_sight``). Without ``path_in_sight`` those plans are measured from that hidden point, and their path guidance
+pulls into the wall (docs/crowd.md, "Path points in sight"). ``--path-in-sight 0`` runs the crowd as before that
+setting (``DiffusionCrowd(path_in_sight=False)``).
 """
 
 from __future__ import annotations
@@ -25,9 +31,21 @@ import navzoo.agents.diffusion.crowd as dc
 from navzoo.benchmark import pedestrians as P
 
 
-def probe(scene: str, n: int, seconds: float, bodies: str = "kinematic", seed: int = 0) -> dict:
+def _nearest_hidden(env, i: int) -> bool:
+    """Whether agent ``i``'s nearest path point (from the segment before its current waypoint on) is out of sight."""
+    path, start, pos = env.paths[i], int(env.wp_index[i]), env.pos[i]
+    pts = np.vstack([pos[None], path]) if len(path) == 1 else path
+    first = max(0, start - 1) if len(path) > 1 else 0
+    if len(pts) - first < 2:
+        return False
+    _, _, proj = dc._nearest_on_polyline(pts[first:], pos)
+    return not bool(dc._in_sight(env)(pos, proj[None])[0])
+
+
+def probe(scene: str, n: int, seconds: float, bodies: str = "kinematic", seed: int = 0,
+          path_in_sight: bool = True) -> dict:
     """Counts of one scene (see the module doc)."""
-    counts = {"targets": 0, "on_path": 0, "moved": 0, "moves_m": []}
+    counts = {"targets": 0, "on_path": 0, "moved": 0, "moves_m": [], "nearest_hidden": 0}
     original = dc._end_targets
 
     def spy(env, people, horizon_s, extend, past_goal_turn_deg=0.0, sight=None):
@@ -41,15 +59,25 @@ def probe(scene: str, n: int, seconds: float, bodies: str = "kinematic", seed: i
         counts["on_path"] += int(on_path.sum())
         counts["moved"] += int((on_path & (move > 0.1)).sum())
         counts["moves_m"] += move[on_path & (move > 0.1)].tolist()
+        counts["nearest_hidden"] += sum(_nearest_hidden(env, i) for i in people)
         return out
 
+    init = dc.DiffusionCrowd.__init__
+
+    def init_with_setting(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        self.path_in_sight = path_in_sight
+
     dc._end_targets = spy
+    dc.DiffusionCrowd.__init__ = init_with_setting
     try:
         P.follow_scene(scene, n, seconds, seed, crowd_model="diffusion", human_model=bodies)
     finally:
         dc._end_targets = original
+        dc.DiffusionCrowd.__init__ = init
     moves = counts.pop("moves_m")
-    return {"scene": scene, "pedestrians": n, "seconds": seconds, "bodies": bodies, **counts,
+    return {"scene": scene, "pedestrians": n, "seconds": seconds, "bodies": bodies, "path_in_sight": path_in_sight,
+            **counts,
             "median_move_m": float(np.median(moves)) if moves else None}
 
 
@@ -59,12 +87,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=40.0)
     ap.add_argument("--bodies", default="kinematic", choices=("kinematic", "amp"))
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--path-in-sight", type=int, choices=(0, 1), default=1,
+                    help="the diffusion crowd's path_in_sight setting (default 1, on)")
     args = ap.parse_args(argv)
     for item in args.scenes.split(","):
         name, _, k = item.partition(":")
         if not name or not k.isdigit() or int(k) < 1:
             ap.error(f"--scenes takes scene:pedestrians items, got {item!r}")
-        print(json.dumps(probe(name, int(k), args.seconds, args.bodies, args.seed)), flush=True)
+        print(json.dumps(probe(name, int(k), args.seconds, args.bodies, args.seed, bool(args.path_in_sight))), flush=True)
     return 0
 
 
