@@ -12,7 +12,9 @@ Every ``replan_s`` seconds (2 s) all pedestrians of a world are planned in one b
    gets that waypoint as its goal) with "clean" guidance: every step is pulled toward the A* path
    point ``v_pref x t`` ahead (``path_weight``), the end point
    is pulled to the point of the person's A* path that lies ``v_pref x 4.8 s`` ahead (the sparse
-   global waypoint), and samples are pushed off other people's current plans and off walls;
+   global waypoint), and samples are pushed off other people's current plans and off walls; both path
+   points are measured from the nearest path point the person sees, and lie no farther along the path than
+   it stays in sight (``path_in_sight``, :func:`_ahead_from_nearest`);
 4. of each person's samples the one of lowest guidance cost is kept, in world coordinates.
 
 Kinematic pedestrians take the plan as their preferred velocity (:meth:`preferred_velocities`:
