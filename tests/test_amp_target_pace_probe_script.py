@@ -1,4 +1,4 @@
-"""scripts/amp_pace_probe.py: body speed against target speed, per scene."""
+"""scripts/amp_target_pace_probe.py: body speed against target speed, per scene."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="module")
 def script():
-    spec = importlib.util.spec_from_file_location("amp_pace_probe", ROOT / "scripts" / "amp_pace_probe.py")
+    spec = importlib.util.spec_from_file_location("amp_target_pace_probe", ROOT / "scripts" / "amp_target_pace_probe.py")
     mod = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = mod
     spec.loader.exec_module(mod)
