@@ -184,5 +184,9 @@ def write_blend(paths: list[str | os.PathLike[str]], out: str | os.PathLike[str]
     tmp = path.with_suffix(".json.tmp")
     tmp.write_text(json.dumps(cfg, indent=1, sort_keys=True) + "\n")
     os.replace(tmp, path)
-    load_policy(out)
+    try:
+        load_policy(out)
+    except Exception:
+        path.unlink()
+        raise
     return path
