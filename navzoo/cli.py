@@ -146,6 +146,11 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _weights(text: str | None) -> list[float] | None:
+    """``--weights W1,W2,...`` as floats (None: equal weights); a ValueError names a bad entry."""
+    return None if text is None else [float(x) for x in text.split(",")]
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -292,8 +297,7 @@ def _train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         from navzoo.agents.amp.checkpoint import CheckpointError, average_policies
 
         try:
-            weights = None if args.weights is None else [float(x) for x in args.weights.split(",")]
-            out = average_policies(args.policies, args.out, weights)
+            out = average_policies(args.policies, args.out, _weights(args.weights))
         except (ValueError, CheckpointError) as e:
             parser.error(f"train amp-average: {e}")
         print(json.dumps({"policy": str(out), "averaged_from": json.loads((out / "config.json").read_text())["averaged_from"]}))
@@ -303,8 +307,7 @@ def _train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         from navzoo.agents.amp.checkpoint import CheckpointError
 
         try:
-            weights = None if args.weights is None else [float(x) for x in args.weights.split(",")]
-            cfg_path = write_blend(args.policies, args.out, weights)
+            cfg_path = write_blend(args.policies, args.out, _weights(args.weights))
         except (ValueError, CheckpointError) as e:
             parser.error(f"train amp-blend: {e}")
         print(json.dumps({"policy": str(cfg_path.parent),

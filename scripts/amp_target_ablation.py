@@ -135,17 +135,6 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     cfg, scene, n, seconds, seed, crowd, diffusion_settings, bodies = job
-    if diffusion_settings:  # every DiffusionCrowd this process builds gets the settings
-        from navzoo.agents.diffusion.crowd import DiffusionCrowd
-        from navzoo.benchmark.matched_realism import apply_diffusion_settings
-
-        init = DiffusionCrowd.__init__
-
-        def patched(self, *args, **kwargs):
-            init(self, *args, **kwargs)
-            apply_diffusion_settings(self, diffusion_settings)
-
-        DiffusionCrowd.__init__ = patched
     import navzoo.envs.amp_humans as ah
     import navzoo.envs.nav_env as ne
 
@@ -169,11 +158,13 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
         ah.LAG_LIMIT_RULES = cfg["lag"]
     for name, value in (cfg.get("set") or {}).items():
         setattr(ah, name, value)
+    from navzoo.benchmark.matched_realism import diffusion_settings_for_new_crowds
     from navzoo.benchmark.pedestrians import follow_scene
 
-    row = follow_scene(scene, n, seconds, seed, env_overrides=env_overrides(cfg["env_flags"]),
-                       steering_trim=cfg.get("trim"), policy_dir=cfg.get("policy"), crowd_model=crowd,
-                       human_model=bodies)
+    with diffusion_settings_for_new_crowds(diffusion_settings):  # every DiffusionCrowd of the run gets them
+        row = follow_scene(scene, n, seconds, seed, env_overrides=env_overrides(cfg["env_flags"]),
+                           steering_trim=cfg.get("trim"), policy_dir=cfg.get("policy"), crowd_model=crowd,
+                           human_model=bodies)
     row.pop("poses")
     row.pop("walk_kin")  # speed / acceleration / jerk samples: navzoo eval crowd reports them
     return {"config": cfg["name"],

@@ -25,25 +25,11 @@ import numpy as np
 
 def probe(scene: str, n: int, seconds: float, seed: int, policy: str | None, crowd: str, bodies: str,
           path_in_sight: bool = True) -> dict:
-    import navzoo.agents.diffusion.crowd as dc
+    from navzoo.benchmark.matched_realism import diffusion_settings_for_new_crowds
     from navzoo.benchmark.pedestrians import _make, target_points
     from navzoo.torch_threads import one_torch_thread
 
-    init = dc.DiffusionCrowd.__init__
-
-    def init_with_setting(self, *args, **kwargs):
-        init(self, *args, **kwargs)
-        self.path_in_sight = path_in_sight
-
-    dc.DiffusionCrowd.__init__ = init_with_setting
-    try:
-        return _probe(scene, n, seconds, seed, policy, crowd, bodies, _make, target_points, one_torch_thread)
-    finally:
-        dc.DiffusionCrowd.__init__ = init
-
-
-def _probe(scene, n, seconds, seed, policy, crowd, bodies, _make, target_points, one_torch_thread) -> dict:
-    with one_torch_thread():
+    with one_torch_thread(), diffusion_settings_for_new_crowds({"path_in_sight": float(path_in_sight)}):
         wrapped, env = _make(scene, n, bodies, seconds, seed, policy, crowd)
         R = env.n_robots
         h = np.arange(R, env.n_total)
@@ -66,7 +52,7 @@ def _probe(scene, n, seconds, seed, policy, crowd, bodies, _make, target_points,
     ok = ~(down[lag:] | down[:-lag])
     print(f"{scene} ({n}, {seconds:.0f} s): {time.time() - t0:.0f} s", file=sys.stderr, flush=True)
     return {"scene": scene, "people": n, "v_body": v_body[ok], "v_target": v_tgt[ok],
-            "pref_speed": None if pref is None else pref.tolist()}
+            "pref_speed": pref.tolist()}
 
 
 def summary(v_body: np.ndarray, v_tgt: np.ndarray) -> dict:

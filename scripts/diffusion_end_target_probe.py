@@ -29,6 +29,7 @@ import numpy as np
 
 import navzoo.agents.diffusion.crowd as dc
 from navzoo.benchmark import pedestrians as P
+from navzoo.benchmark.matched_realism import diffusion_settings_for_new_crowds
 
 
 def _nearest_hidden(env, i: int) -> bool:
@@ -62,19 +63,12 @@ def probe(scene: str, n: int, seconds: float, bodies: str = "kinematic", seed: i
         counts["nearest_hidden"] += sum(_nearest_hidden(env, i) for i in people)
         return out
 
-    init = dc.DiffusionCrowd.__init__
-
-    def init_with_setting(self, *args, **kwargs):
-        init(self, *args, **kwargs)
-        self.path_in_sight = path_in_sight
-
     dc._end_targets = spy
-    dc.DiffusionCrowd.__init__ = init_with_setting
     try:
-        P.follow_scene(scene, n, seconds, seed, crowd_model="diffusion", human_model=bodies)
+        with diffusion_settings_for_new_crowds({"path_in_sight": float(path_in_sight)}):
+            P.follow_scene(scene, n, seconds, seed, crowd_model="diffusion", human_model=bodies)
     finally:
         dc._end_targets = original
-        dc.DiffusionCrowd.__init__ = init
     moves = counts.pop("moves_m")
     return {"scene": scene, "pedestrians": n, "seconds": seconds, "bodies": bodies, "path_in_sight": path_in_sight,
             **counts,

@@ -47,7 +47,8 @@ import json
 import multiprocessing as mp
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -153,6 +154,29 @@ def apply_diffusion_settings(crowd: Any, settings: dict[str, float] | None) -> N
     crowd.weights = tuple(float(settings.pop(k, w)) for k, w in zip(names, crowd.weights, strict=True))
     for key, value in settings.items():
         setattr(crowd, key, type(getattr(crowd, key))(value))
+
+
+@contextmanager
+def diffusion_settings_for_new_crowds(settings: dict[str, float] | None) -> Iterator[None]:
+    """Within the block, every :class:`~navzoo.agents.diffusion.crowd.DiffusionCrowd` built (e.g. by an env)
+    gets ``settings`` (:func:`apply_diffusion_settings`); nothing changes when they are empty."""
+    if not settings:
+        yield
+        return
+    from navzoo.agents.diffusion.crowd import DiffusionCrowd
+
+    settings = check_diffusion_settings(settings)
+    init = DiffusionCrowd.__init__
+
+    def with_settings(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        apply_diffusion_settings(self, settings)
+
+    DiffusionCrowd.__init__ = with_settings
+    try:
+        yield
+    finally:
+        DiffusionCrowd.__init__ = init
 
 
 def run_scenario(crowd: str, sc: Scenario, seed: int = 0, skip: float = 2.0,

@@ -66,12 +66,9 @@ class BlendedPolicy:
 
     @steering_trim.setter
     def steering_trim(self, value: float) -> None:
-        from navzoo.agents.amp.checkpoint import MAX_STEERING_TRIM
+        from navzoo.agents.amp.checkpoint import check_steering_trim
 
-        trim = float(value)
-        if not (np.isfinite(trim) and abs(trim) <= MAX_STEERING_TRIM):
-            raise ValueError(f"steering_trim must be finite and within ±{MAX_STEERING_TRIM} rad, got {value!r}")
-        self._steering_trim = trim
+        self._steering_trim = check_steering_trim(value)
 
     @property
     def symmetric(self) -> bool:
@@ -89,15 +86,9 @@ class BlendedPolicy:
             self.steering_trim = steering_trim
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
-        from navzoo.agents.amp.checkpoint import rotate_waypoints
+        from navzoo.agents.amp.checkpoint import obs_batch, rotate_waypoints
 
-        x = np.asarray(obs, dtype=np.float32)
-        if x.shape[-1] != self.obs_dim or x.ndim not in (1, 2):
-            raise ValueError(
-                f"obs must have shape (obs_dim,) or (N, obs_dim) with obs_dim={self.obs_dim}, got {x.shape}"
-            )
-        single = x.ndim == 1
-        x = x.reshape(-1, self.obs_dim)
+        x, single = obs_batch(obs, self.obs_dim)
         if self.steering_trim:
             x = rotate_waypoints(x, *self._waypoints, self.steering_trim)
         act = sum(w * c(x) for w, c in zip(self.weights, self.components, strict=True))

@@ -300,6 +300,23 @@ MAX_STEERING_TRIM = 0.5
 TRIM_OFF_KEY = "off_for_crowd_models"
 
 
+def check_steering_trim(value: float) -> float:
+    """``value`` as a float steering trim (rad), or a ValueError unless finite and within ±MAX_STEERING_TRIM."""
+    trim = float(value)
+    if not (np.isfinite(trim) and abs(trim) <= MAX_STEERING_TRIM):
+        raise ValueError(f"steering_trim must be finite and within ±{MAX_STEERING_TRIM} rad, got {value!r}")
+    return trim
+
+
+def obs_batch(obs: np.ndarray, obs_dim: int) -> tuple[np.ndarray, bool]:
+    """``obs`` of shape ``(obs_dim,)`` or ``(N, obs_dim)`` as a float32 ``(N, obs_dim)`` batch, and whether it
+    was a single observation; a ValueError naming the shape otherwise."""
+    x = np.asarray(obs, dtype=np.float32)
+    if x.shape[-1] != obs_dim or x.ndim not in (1, 2):
+        raise ValueError(f"obs must have shape (obs_dim,) or (N, obs_dim) with obs_dim={obs_dim}, got {x.shape}")
+    return x.reshape(-1, obs_dim), x.ndim == 1
+
+
 def waypoint_layout(obs_dim: int, config: dict[str, Any] | None = None) -> tuple[int, int]:
     """(first column, number K) of the target points in a policy observation of ``obs_dim`` columns:
     the ``steering_trim`` entry of ``config`` when it names them, else the layout of
@@ -371,9 +388,7 @@ class AmpPolicy:
 
     @steering_trim.setter
     def steering_trim(self, value: float) -> None:
-        trim = float(value)
-        if not (np.isfinite(trim) and abs(trim) <= MAX_STEERING_TRIM):
-            raise ValueError(f"steering_trim must be finite and within ±{MAX_STEERING_TRIM} rad, got {value!r}")
+        trim = check_steering_trim(value)
         if trim and getattr(self, "_symmetric", None) is not None:
             raise ValueError("a symmetric policy has no steering bias to trim: steering_trim must be 0 "
                              f"when symmetric is on, got {value!r}")
@@ -424,13 +439,7 @@ class AmpPolicy:
 
     @torch.no_grad()
     def __call__(self, obs: np.ndarray) -> np.ndarray:
-        x = np.asarray(obs, dtype=np.float32)
-        single = x.ndim == 1
-        if x.shape[-1] != self.obs_dim or x.ndim not in (1, 2):
-            raise ValueError(
-                f"obs must have shape (obs_dim,) or (N, obs_dim) with obs_dim={self.obs_dim}, got {x.shape}"
-            )
-        x = x.reshape(-1, self.obs_dim)
+        x, single = obs_batch(obs, self.obs_dim)
         if self.steering_trim:
             x = rotate_waypoints(x, *self.waypoints, self.steering_trim)
         t = torch.from_numpy(x).to(self.device)
