@@ -78,6 +78,9 @@ def test_path_points_are_taken_on_the_persons_side_of_a_wall():
     far = _ahead_from_nearest(path, 1, pos, np.array([1.0, 4.0, 8.0]), sight=sight)
     np.testing.assert_allclose(far, [[3.0, -0.3], [5.0, 0.7], [5.0, 0.95]], atol=1e-9)
     assert sight(pos, far).all()
+    # without holding them in sight they run on round the bend, still from the person's own leg
+    on = _ahead_from_nearest(path, 1, pos, np.array([1.0, 4.0, 8.0]), sight=sight, hold_in_sight=False)
+    np.testing.assert_allclose(on, [[3.0, -0.3], [5.0, 0.7], [1.9, 1.6]], atol=1e-9)
     # in the open the points are those without sight
     np.testing.assert_allclose(_ahead_from_nearest(path, 1, np.array([2.0, 0.2]), np.array([1.0, 4.0]), sight=sight),
                                _ahead_from_nearest(path, 1, np.array([2.0, 0.2]), np.array([1.0, 4.0])))

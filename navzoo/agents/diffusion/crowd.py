@@ -138,7 +138,8 @@ def _in_sight(env: NavEnv, clearance: float = SIGHT_CLEARANCE, step: float = 0.0
 
 def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance: float | np.ndarray,
                         extend: bool = False,
-                        sight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> np.ndarray:
+                        sight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+                        hold_in_sight: bool = True) -> np.ndarray:
     """The point ``distance`` metres ahead (or the points, for an array of distances) along the A*
     ``path`` from the point of the path nearest to ``pos``, searched from the segment that ends at
     waypoint ``start`` (the env's current one) on; with ``sight`` (:func:`_in_sight`), from the nearest point
@@ -149,9 +150,9 @@ def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance:
     current waypoint would then put the target behind the person. A person beside a wall is often nearer
     to a later leg of its path on the wall's other side than to the leg it walks: measured from there, the
     targets pull it into the wall (``sight`` keeps them on its side; docs/crowd.md, "Path points in sight").
-    With ``sight`` the points also lie no farther along the path than it stays in sight of ``pos`` (tested every
-    :data:`SIGHT_STEP` m): round a corner, the next plan goes on. A person who sees no point of its path gets
-    the points as without ``sight``.
+    With ``sight`` and ``hold_in_sight`` the points also lie no farther along the path than it stays in sight of
+    ``pos`` (tested every :data:`SIGHT_STEP` m): round a corner, the next plan goes on. A person who sees no point
+    of its path gets the points as without ``sight``.
     """
     pts = np.vstack([pos[None], path]) if len(path) == 1 else path
     first = max(0, start - 1) if len(path) > 1 else 0
@@ -159,7 +160,7 @@ def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance:
         return _ahead_on_path(path[start:], pos, distance, extend)
     k, _, proj = _nearest_on_polyline(pts[first:], pos, sight)
     rest = pts[first + k + 1:]
-    if sight is not None and sight(pos, proj[None])[0]:  # no farther than the path stays in sight
+    if hold_in_sight and sight is not None and sight(pos, proj[None])[0]:  # no farther than the path stays in sight
         d = np.asarray(distance, dtype=float)
         probe = np.arange(SIGHT_STEP, float(np.max(d, initial=0.0)) + SIGHT_STEP, SIGHT_STEP)
         if probe.size:
@@ -204,7 +205,8 @@ def _freest_extension(env: NavEnv, start: np.ndarray, end: np.ndarray, clearance
 
 def _end_targets(env: NavEnv, people: np.ndarray, horizon_s: float, extend: bool,
                  past_goal_turn_deg: float = 0.0,
-                 sight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> np.ndarray:
+                 sight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+                 hold_in_sight: bool = True) -> np.ndarray:
     """(B, 2) world end targets of the plans of agents ``people``: the point of each one's A* path
     ``v_pref x horizon_s`` ahead (:func:`_ahead_from_nearest`). With ``extend``, a target that would be held at
     the goal is carried past it instead, along the path's last line (or turned by up to ``past_goal_turn_deg``
@@ -215,14 +217,14 @@ def _end_targets(env: NavEnv, people: np.ndarray, horizon_s: float, extend: bool
     plans in the home; docs/crowd.md, "End targets left on the path").
     """
     target = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * horizon_s,
-                                           sight=sight) for i in people]).reshape(-1, 2)
+                                           sight=sight, hold_in_sight=hold_in_sight) for i in people]).reshape(-1, 2)
     if not extend or len(people) == 0:
         return target
     ends = np.array([env.paths[i][-1] for i in people])  # the goals
     past = np.linalg.norm(target - ends, axis=1) < 1e-9
     if past.any():
         carried = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * horizon_s,
-                                                True, sight) for i in people[past]])
+                                                True, sight, hold_in_sight) for i in people[past]])
         clearance = float(env.config.human_radius) + 0.1
         target[past] = (_freest_extension(env, ends[past], carried, clearance, past_goal_turn_deg)
                         if past_goal_turn_deg > 0 else _clip_to_free(env, ends[past], carried, clearance))
@@ -254,8 +256,11 @@ class DiffusionCrowd:
             above 0 the line may turn by up to this many degrees toward the longest free run
             (:func:`_freest_extension`).
         path_in_sight: measure the path guidance and the end target from the nearest path point the person
-            sees, and no farther along the path than it stays in sight (:func:`_ahead_from_nearest`); off, from
-            the nearest path point and as far as the pace reaches, walls or not (before 2026-12-02).
+            sees, and (with ``hold_in_sight``) no farther along the path than it stays in sight
+            (:func:`_ahead_from_nearest`); off, from the nearest path point and as far as the pace reaches, walls or
+            not (before 2026-12-02).
+        hold_in_sight: with ``path_in_sight``, hold the path points where the path leaves the person's sight
+            (round a corner, the next plan goes on); off, they reach as far along the path as the pace does.
         k_neighbors, neighbor_radius: neighbours given to the model.
         seed: seed of the sampling noise (with the env's step count, so replays are exact).
         device: torch device of the model.
@@ -266,7 +271,8 @@ class DiffusionCrowd:
                  agent_weight: float = 10.0, map_weight: float = 10.0, k_neighbors: int = 16,
                  neighbor_radius: float = 10.0, seed: int = 0, device: str = "cpu",
                  path_weight: float = 20.0, blend_s: float = 1.2, smooth_weight: float = 0.0,
-                 agent_buffer: float = 0.2, past_goal_turn_deg: float = 0.0, path_in_sight: bool = True) -> None:
+                 agent_buffer: float = 0.2, past_goal_turn_deg: float = 0.0, path_in_sight: bool = True,
+                 hold_in_sight: bool = True) -> None:
         if model is None or isinstance(model, (str, Path)):
             from navzoo.agents.diffusion.trainer import load_model
 
@@ -299,6 +305,7 @@ class DiffusionCrowd:
             raise ValueError(f"past_goal_turn_deg must be in [0, 180], got {past_goal_turn_deg!r}")
         self.past_goal_turn_deg = float(past_goal_turn_deg)
         self.path_in_sight = bool(path_in_sight)
+        self.hold_in_sight = bool(hold_in_sight)
         self.n = 0
 
     # ------------------------------------------------------------------ state
@@ -389,7 +396,7 @@ class DiffusionCrowd:
         # would slow down further as the goal comes closer); people who stop there aim at it.
         extend = env.config.human_at_goal != "stop"
         sight = _in_sight(env) if self.path_in_sight else None
-        target_w = _end_targets(env, people, horizon_s, extend, self.past_goal_turn_deg, sight)
+        target_w = _end_targets(env, people, horizon_s, extend, self.past_goal_turn_deg, sight, self.hold_in_sight)
         target = fdata.to_local(target_w[:, None, :], local)[:, 0]
         if self.cfg.goal:  # a goal-conditioned model gets the waypoint as its goal (guidance still pulls)
             batch["goal"] = torch.as_tensor(target, dtype=torch.float32)
@@ -400,7 +407,8 @@ class DiffusionCrowd:
         if self.path_weight > 0:  # every step near the A* path at the person's pace (around walls, not through)
             steps = np.arange(1, H + 1) * MODEL_DT
             along = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * steps,
-                                                  sight=sight) for i in people])  # (B, H, 2) world, held at the goal
+                                                  sight=sight, hold_in_sight=self.hold_in_sight)
+                              for i in people])  # (B, H, 2) world, held at the goal
             ref = fdata.to_local(along, local)
             costs.append(path_cost(torch.as_tensor(ref, dtype=torch.float32), self.path_weight,
                                    valid=torch.as_tensor(~standing)))
