@@ -78,6 +78,11 @@ def test_path_points_are_taken_on_the_persons_side_of_a_wall():
     far = _ahead_from_nearest(path, 1, pos, np.array([1.0, 4.0, 8.0]), sight=sight)
     np.testing.assert_allclose(far, [[3.0, -0.3], [5.0, 0.7], [5.0, 0.95]], atol=1e-9)
     assert sight(pos, far).all()
+    # a floor on the hold: no nearer than 5 m along the path (hidden or not), and never beyond the distance asked
+    floored = _ahead_from_nearest(path, 1, pos, np.array([1.0, 4.0, 8.0]), sight=sight, hold_floor=5.0)
+    np.testing.assert_allclose(floored, [[3.0, -0.3], [5.0, 0.7], [4.9, 1.6]], atol=1e-9)
+    low = _ahead_from_nearest(path, 1, pos, np.array([1.0, 4.0, 8.0]), sight=sight, hold_floor=3.5)
+    np.testing.assert_allclose(low, far, atol=1e-9)  # a floor below where sight ends changes nothing
     # without holding them in sight they run on round the bend, still from the person's own leg
     on = _ahead_from_nearest(path, 1, pos, np.array([1.0, 4.0, 8.0]), sight=sight, hold_in_sight=False)
     np.testing.assert_allclose(on, [[3.0, -0.3], [5.0, 0.7], [1.9, 1.6]], atol=1e-9)
@@ -208,6 +213,8 @@ def test_agent_buffer_sets_the_people_guidance_clearance(model_dir, monkeypatch)
     env.close()
     with pytest.raises(ValueError, match="agent_buffer"):
         DiffusionCrowd(TrajectoryDiffusion(CFG), agent_buffer=-0.1)
+    with pytest.raises(ValueError, match="hold_floor_s"):
+        DiffusionCrowd(TrajectoryDiffusion(CFG), hold_floor_s=float("nan"))
 
 
 def test_amp_targets_toward_diffusion_plans_keep_to_the_speed_cap(model_dir, monkeypatch):
