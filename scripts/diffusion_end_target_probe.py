@@ -49,8 +49,8 @@ def probe(scene: str, n: int, seconds: float, bodies: str = "kinematic", seed: i
     counts = {"targets": 0, "on_path": 0, "moved": 0, "moves_m": [], "nearest_hidden": 0}
     original = dc._end_targets
 
-    def spy(env, people, horizon_s, extend, past_goal_turn_deg=0.0, sight=None):
-        out = original(env, people, horizon_s, extend, past_goal_turn_deg, sight)
+    def spy(env, people, horizon_s, extend, *args, **kwargs):
+        out = original(env, people, horizon_s, extend, *args, **kwargs)
         ends = np.array([env.paths[i][-1] for i in people]).reshape(-1, 2)
         held = original(env, people, horizon_s, False)
         on_path = np.linalg.norm(held - ends, axis=1) >= 1e-9

@@ -14,7 +14,8 @@ Every ``replan_s`` seconds (2 s) all pedestrians of a world are planned in one b
    is pulled to the point of the person's A* path that lies ``v_pref x 4.8 s`` ahead (the sparse
    global waypoint), and samples are pushed off other people's current plans and off walls; both path
    points are measured from the nearest path point the person sees, and lie no farther along the path than
-   it stays in sight (``path_in_sight``, :func:`_ahead_from_nearest`);
+   it stays in sight (``path_in_sight``, :func:`_ahead_from_nearest`), unless that is nearer than the person
+   walks before its next plan (``hold_floor_s``);
 4. of each person's samples the one of lowest guidance cost is kept, in world coordinates.
 
 Kinematic pedestrians take the plan as their preferred velocity (:meth:`preferred_velocities`:
@@ -264,7 +265,9 @@ class DiffusionCrowd:
         hold_in_sight: with ``path_in_sight``, hold the path points where the path leaves the person's sight
             (round a corner, the next plan goes on); off, they reach as far along the path as the pace does.
         hold_floor_s: held points lie no nearer along the path than the person walks in this many seconds at its
-            preferred speed (0: right where the path leaves sight).
+            preferred speed (0: right where the path leaves sight, as from 2026-12-02 to 2026-12-03). 2 s, the
+            replan interval: nobody reaches a held point before the next plan, so nobody stops at corners and
+            pillars (docs/crowd.md, "A floor under the held path points").
         k_neighbors, neighbor_radius: neighbours given to the model.
         seed: seed of the sampling noise (with the env's step count, so replays are exact).
         device: torch device of the model.
@@ -276,7 +279,7 @@ class DiffusionCrowd:
                  neighbor_radius: float = 10.0, seed: int = 0, device: str = "cpu",
                  path_weight: float = 20.0, blend_s: float = 1.2, smooth_weight: float = 0.0,
                  agent_buffer: float = 0.2, past_goal_turn_deg: float = 0.0, path_in_sight: bool = True,
-                 hold_in_sight: bool = True, hold_floor_s: float = 0.0) -> None:
+                 hold_in_sight: bool = True, hold_floor_s: float = 2.0) -> None:
         if model is None or isinstance(model, (str, Path)):
             from navzoo.agents.diffusion.trainer import load_model
 
