@@ -94,6 +94,38 @@ def test_path_points_are_taken_on_the_persons_side_of_a_wall():
     np.testing.assert_allclose(blind, old)
 
 
+def test_floor_in_sight_reaches_past_a_pillar_not_round_a_wall():
+    # A straight path along y = 0 with a pillar's shadow over 3.4 < x < 4.6: the path leaves sight at 3.4 m and
+    # is seen again from 4.6 m on.
+    path = np.array([[float(x), 0.0] for x in range(11)])
+    pos = np.array([0.0, 0.2])
+
+    def pillar(p, pts):
+        pts = np.asarray(pts).reshape(-1, 2)
+        return ~((pts[:, 0] > 3.4) & (pts[:, 0] < 4.6))
+
+    d = np.array([1.0, 6.0])
+    held = _ahead_from_nearest(path, 1, pos, d, sight=pillar)
+    np.testing.assert_allclose(held, [[1.0, 0.0], [3.25, 0.0]])  # held where the path leaves sight
+    # the floor point 5 m along is in sight again: the floor applies as without floor_in_sight
+    for fis in (False, True):
+        np.testing.assert_allclose(_ahead_from_nearest(path, 1, pos, d, sight=pillar, hold_floor=5.0,
+                                                       floor_in_sight=fis), [[1.0, 0.0], [5.0, 0.0]])
+    # a floor point in the shadow: floor_in_sight takes the farthest point seen up to it (here the held one)
+    np.testing.assert_allclose(_ahead_from_nearest(path, 1, pos, d, sight=pillar, hold_floor=4.5),
+                               [[1.0, 0.0], [4.5, 0.0]])
+    np.testing.assert_allclose(_ahead_from_nearest(path, 1, pos, d, sight=pillar, hold_floor=4.5,
+                                                   floor_in_sight=True), held)
+    # round a wall (the U-shaped path of the test above) the path stays hidden: the points stay where sight ends
+    upath = np.array([[0.0, -0.3], [5.0, -0.3], [5.0, 1.6], [0.0, 1.6]])
+    upos, sight = np.array([2.0, 0.99]), _wall_sight()
+    far = _ahead_from_nearest(upath, 1, upos, np.array([1.0, 4.0, 8.0]), sight=sight)
+    floored = _ahead_from_nearest(upath, 1, upos, np.array([1.0, 4.0, 8.0]), sight=sight, hold_floor=5.0,
+                                  floor_in_sight=True)
+    np.testing.assert_allclose(floored, far, atol=1e-9)
+    assert sight(upos, floored).all()
+
+
 def test_in_sight_follows_the_scene_walls():
     env = NavEnv(scene="home", n_robots=0, n_humans=1)
     env.reset(seed=0)

@@ -140,7 +140,8 @@ def _in_sight(env: NavEnv, clearance: float = SIGHT_CLEARANCE, step: float = 0.0
 def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance: float | np.ndarray,
                         extend: bool = False,
                         sight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
-                        hold_in_sight: bool = True, hold_floor: float = 0.0) -> np.ndarray:
+                        hold_in_sight: bool = True, hold_floor: float = 0.0,
+                        floor_in_sight: bool = False) -> np.ndarray:
     """The point ``distance`` metres ahead (or the points, for an array of distances) along the A*
     ``path`` from the point of the path nearest to ``pos``, searched from the segment that ends at
     waypoint ``start`` (the env's current one) on; with ``sight`` (:func:`_in_sight`), from the nearest point
@@ -153,7 +154,10 @@ def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance:
     targets pull it into the wall (``sight`` keeps them on its side; docs/crowd.md, "Path points in sight").
     With ``sight`` and ``hold_in_sight`` the points also lie no farther along the path than it stays in sight of
     ``pos`` (tested every :data:`SIGHT_STEP` m), or no nearer than ``hold_floor`` m along it: round a corner, the
-    next plan goes on. A person who sees no point of its path gets the points as without ``sight``.
+    next plan goes on. With ``floor_in_sight`` the floor reaches only to a path point that ``pos`` sees again (the
+    path past a pillar), the farthest such point up to ``hold_floor`` m; where the path stays hidden (round the
+    jamb of a door or a wall's end) the points stay where it leaves sight. A person who sees no point of its path
+    gets the points as without ``sight``.
     """
     pts = np.vstack([pos[None], path]) if len(path) == 1 else path
     first = max(0, start - 1) if len(path) > 1 else 0
@@ -168,7 +172,13 @@ def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance:
             seen = np.asarray(sight(pos, _ahead_on_path(rest, proj, probe, extend).reshape(-1, 2)), dtype=bool)
             if not seen.all():
                 first_hidden = int(np.argmin(seen))
-                distance = np.minimum(d, max(probe[first_hidden - 1] if first_hidden > 0 else 0.0, hold_floor))
+                held = probe[first_hidden - 1] if first_hidden > 0 else 0.0
+                floor = hold_floor
+                if floor_in_sight and hold_floor > held:
+                    floor_seen = bool(sight(pos, _ahead_on_path(rest, proj, hold_floor, extend)[None])[0])
+                    back = probe[(probe <= hold_floor) & seen]
+                    floor = hold_floor if floor_seen else (float(back.max()) if back.size else 0.0)
+                distance = np.minimum(d, max(held, floor))
     return _ahead_on_path(rest, proj, distance, extend)
 
 
@@ -207,7 +217,7 @@ def _freest_extension(env: NavEnv, start: np.ndarray, end: np.ndarray, clearance
 def _end_targets(env: NavEnv, people: np.ndarray, horizon_s: float, extend: bool,
                  past_goal_turn_deg: float = 0.0,
                  sight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
-                 hold_in_sight: bool = True, hold_floor_s: float = 0.0) -> np.ndarray:
+                 hold_in_sight: bool = True, hold_floor_s: float = 0.0, floor_in_sight: bool = False) -> np.ndarray:
     """(B, 2) world end targets of the plans of agents ``people``: the point of each one's A* path
     ``v_pref x horizon_s`` ahead (:func:`_ahead_from_nearest`). With ``extend``, a target that would be held at
     the goal is carried past it instead, along the path's last line (or turned by up to ``past_goal_turn_deg``
@@ -219,14 +229,15 @@ def _end_targets(env: NavEnv, people: np.ndarray, horizon_s: float, extend: bool
     """
     target = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * horizon_s,
                                            sight=sight, hold_in_sight=hold_in_sight,
-                                           hold_floor=env.v_pref[i] * hold_floor_s) for i in people]).reshape(-1, 2)
+                                           hold_floor=env.v_pref[i] * hold_floor_s, floor_in_sight=floor_in_sight)
+                       for i in people]).reshape(-1, 2)
     if not extend or len(people) == 0:
         return target
     ends = np.array([env.paths[i][-1] for i in people])  # the goals
     past = np.linalg.norm(target - ends, axis=1) < 1e-9
     if past.any():
         carried = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * horizon_s,
-                                                True, sight, hold_in_sight, env.v_pref[i] * hold_floor_s)
+                                                True, sight, hold_in_sight, env.v_pref[i] * hold_floor_s, floor_in_sight)
                             for i in people[past]])
         clearance = float(env.config.human_radius) + 0.1
         target[past] = (_freest_extension(env, ends[past], carried, clearance, past_goal_turn_deg)
@@ -268,6 +279,9 @@ class DiffusionCrowd:
             preferred speed (0: right where the path leaves sight, as from 2026-12-02 to 2026-12-03). 2 s, the
             replan interval: nobody reaches a held point before the next plan, so nobody stops at corners and
             pillars (docs/crowd.md, "A floor under the held path points").
+        floor_in_sight: the floor reaches only to path points the person sees again (past a pillar), not round the
+            jamb of a door or a wall's end, where the path stays hidden and the points stay where it leaves sight
+            (:func:`_ahead_from_nearest`); off, the floor applies wherever the path goes (2026-12-03).
         k_neighbors, neighbor_radius: neighbours given to the model.
         seed: seed of the sampling noise (with the env's step count, so replays are exact).
         device: torch device of the model.
@@ -279,7 +293,7 @@ class DiffusionCrowd:
                  neighbor_radius: float = 10.0, seed: int = 0, device: str = "cpu",
                  path_weight: float = 20.0, blend_s: float = 1.2, smooth_weight: float = 0.0,
                  agent_buffer: float = 0.2, past_goal_turn_deg: float = 0.0, path_in_sight: bool = True,
-                 hold_in_sight: bool = True, hold_floor_s: float = 2.0) -> None:
+                 hold_in_sight: bool = True, hold_floor_s: float = 2.0, floor_in_sight: bool = False) -> None:
         if model is None or isinstance(model, (str, Path)):
             from navzoo.agents.diffusion.trainer import load_model
 
@@ -316,6 +330,7 @@ class DiffusionCrowd:
         if not hold_floor_s >= 0:
             raise ValueError(f"hold_floor_s must be >= 0, got {hold_floor_s!r}")
         self.hold_floor_s = float(hold_floor_s)
+        self.floor_in_sight = bool(floor_in_sight)
         self.n = 0
 
     # ------------------------------------------------------------------ state
@@ -407,7 +422,7 @@ class DiffusionCrowd:
         extend = env.config.human_at_goal != "stop"
         sight = _in_sight(env) if self.path_in_sight else None
         target_w = _end_targets(env, people, horizon_s, extend, self.past_goal_turn_deg, sight, self.hold_in_sight,
-                                self.hold_floor_s)
+                                self.hold_floor_s, self.floor_in_sight)
         target = fdata.to_local(target_w[:, None, :], local)[:, 0]
         if self.cfg.goal:  # a goal-conditioned model gets the waypoint as its goal (guidance still pulls)
             batch["goal"] = torch.as_tensor(target, dtype=torch.float32)
@@ -419,7 +434,8 @@ class DiffusionCrowd:
             steps = np.arange(1, H + 1) * MODEL_DT
             along = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * steps,
                                                   sight=sight, hold_in_sight=self.hold_in_sight,
-                                                  hold_floor=env.v_pref[i] * self.hold_floor_s)
+                                                  hold_floor=env.v_pref[i] * self.hold_floor_s,
+                                                  floor_in_sight=self.floor_in_sight)
                               for i in people])  # (B, H, 2) world, held at the goal
             ref = fdata.to_local(along, local)
             costs.append(path_cost(torch.as_tensor(ref, dtype=torch.float32), self.path_weight,
