@@ -330,3 +330,26 @@ def test_cli_diffusion_crowd_without_a_model_exits_2(tmp_path, capsys, monkeypat
     assert rc == 2
     assert "missing_model" in capsys.readouterr().err
     assert not (tmp_path / "run" / "episodes.jsonl").exists()
+
+
+def test_physics_pedestrian_worlds_are_not_reused_between_episodes(tmp_path, monkeypatch):
+    """PyBullet keeps contact and solver state across a reset, so an episode among physics pedestrians in a
+    reused world depended on the episodes run before it in the same process; each such episode gets a fresh
+    world (its cached env is dropped after the episode), while kinematic crowds keep reusing theirs."""
+    from navzoo.benchmark import runner
+
+    dropped: list[dict] = []
+    drop = runner._drop_env
+
+    def spy(kwargs, render):
+        dropped.append(dict(kwargs))
+        drop(kwargs, render)
+
+    monkeypatch.setattr(runner, "_drop_env", spy)
+    amp = resolve_spec(scenes="corridor", methods="orca", crowd="sfm", humans="2", episodes=2, max_steps=5,
+                       env={"human_model": "amp"})[0]
+    run_benchmark(amp, tmp_path / "amp", workers=0, progress=False)
+    assert len(dropped) == 2 and all(d["human_model"] == "amp" for d in dropped)  # one fresh world per episode
+    kin = resolve_spec(scenes="corridor", methods="orca", crowd="sfm", humans="2", episodes=2, max_steps=5)[0]
+    run_benchmark(kin, tmp_path / "kinematic", workers=0, progress=False)
+    assert len(dropped) == 2  # kinematic worlds are reused
