@@ -1,0 +1,48 @@
+"""scripts/amp_stand_trace.py: where and why physics pedestrians stand."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+_SPEC = importlib.util.spec_from_file_location("amp_stand_trace",
+                                               Path(__file__).resolve().parents[1] / "scripts" / "amp_stand_trace.py")
+st = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(st)
+
+
+def _sample(**kw):
+    base = {"speed": 0.0, "target_m": 1.0, "target_speed": 0.5, "wall": False, "nearest_m": 3.0, "clearance": 1.0}
+    return {**base, **kw}
+
+
+def test_each_standing_sample_gets_the_first_matching_cause():
+    assert st.classify(_sample(target_m=0.2, target_speed=0.05, wall=True), 0.15) == "target stands"
+    assert st.classify(_sample(target_m=0.2, target_speed=0.5, wall=True), 0.15) == "wall contact"  # target moves on
+    assert st.classify(_sample(nearest_m=0.5), 0.15) == "person near"
+    assert st.classify(_sample(), 0.15) == "held, no contact"
+
+
+def test_summary_shares_split_into_narrow_and_open():
+    samples = [dict(_sample(), cause=None, narrow=False),
+               dict(_sample(), cause="target stands", narrow=True),
+               dict(_sample(), cause="target stands", narrow=False),
+               dict(_sample(), cause="person near", narrow=True)]
+    s = st.summarize(samples)
+    assert s["samples"] == 4 and s["standing_share"] == pytest.approx(0.75)
+    ts = s["causes"]["target stands"]
+    assert ts["share_of_person_time"] == pytest.approx(0.5) and ts["narrow"] == ts["open"] == pytest.approx(0.25)
+    assert s["causes"]["wall contact"]["share_of_person_time"] == 0.0
+
+
+def test_a_short_trace_of_physics_pedestrians(tmp_path):
+    r = st.trace("corridor", 2, "sfm", 2.0, 0, 0.5, 0.15)
+    assert r["samples"] and {s["id"] for s in r["samples"]} == {0, 1}
+    assert len(r["samples"]) == 2 * 4  # two people, every 0.5 s of 2 s
+    total = sum(c["share_of_person_time"] for c in r["summary"]["causes"].values())
+    assert total == pytest.approx(r["summary"]["standing_share"])
+    assert all((s["cause"] is None) == (s["speed"] >= 0.15) for s in r["samples"])
+    st.plot(r, str(tmp_path / "t.png"))
+    assert (tmp_path / "t.png").stat().st_size > 1000
