@@ -36,23 +36,28 @@ def _env(scene: str, people: int, sorted_pairs: bool):
     return env
 
 
+def measure(scene: str = "station", people: int = 10, steps: int = 150) -> dict[str, float]:
+    """The three distances (m) printed by the command (see the module doc)."""
+    out = {}
+    with one_torch_thread():
+        fresh = {}
+        for flag in (False, True):
+            fresh[flag] = _run(_env(scene, people, flag), 2, steps)
+            reused = _env(scene, people, flag)
+            _run(reused, 1, steps)
+            out[f"reused_vs_fresh_m{'_sorted_pairs' if flag else ''}"] = float(
+                np.abs(_run(reused, 2, steps) - fresh[flag]).max())
+        out["fresh_sorted_vs_unsorted_m"] = float(np.abs(fresh[True] - fresh[False]).max())
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scene", default="station")
     ap.add_argument("--people", type=int, default=10)
     ap.add_argument("--steps", type=int, default=150)
     args = ap.parse_args()
-    out = {}
-    with one_torch_thread():
-        fresh = {}
-        for flag in (False, True):
-            fresh[flag] = _run(_env(args.scene, args.people, flag), 2, args.steps)
-            reused = _env(args.scene, args.people, flag)
-            _run(reused, 1, args.steps)
-            out[f"reused_vs_fresh_m{'_sorted_pairs' if flag else ''}"] = float(
-                np.abs(_run(reused, 2, args.steps) - fresh[flag]).max())
-        out["fresh_sorted_vs_unsorted_m"] = float(np.abs(fresh[True] - fresh[False]).max())
-    print(json.dumps(out))
+    print(json.dumps(measure(args.scene, args.people, args.steps)))
 
 
 if __name__ == "__main__":
