@@ -126,6 +126,41 @@ def test_floor_in_sight_reaches_past_a_pillar_not_round_a_wall():
     assert sight(upos, floored).all()
 
 
+def test_floor_ray_goes_on_along_the_line_of_sight_where_the_path_stays_hidden():
+    # The U-shaped path round a wall: sight ends at (5, 0.95), 4.25 m along the path; the floor asks for 5 m.
+    upath = np.array([[0.0, -0.3], [5.0, -0.3], [5.0, 1.6], [0.0, 1.6]])
+    upos, sight = np.array([2.0, 0.99]), _wall_sight()
+    d = np.array([1.0, 4.0, 8.0])
+    far = _ahead_from_nearest(upath, 1, upos, d, sight=sight)
+    last = far[-1]
+    np.testing.assert_allclose(last, [5.0, 0.95], atol=1e-9)
+    ray = _ahead_from_nearest(upath, 1, upos, d, sight=sight, hold_floor=5.0, floor_ray=True)
+    np.testing.assert_allclose(ray[:2], far[:2], atol=1e-9)  # up to where sight ends: on the path
+    u = (last - upos) / np.linalg.norm(last - upos)
+    np.testing.assert_allclose(ray[2], last + 0.75 * u, atol=1e-9)  # then 0.75 m on along the line of sight
+    assert sight(upos, ray).all()
+    # not round the wall along the hidden path (the plain floor), nor held at the jamb (floor_in_sight)
+    assert not sight(upos, _ahead_from_nearest(upath, 1, upos, d, sight=sight, hold_floor=5.0)[2:])[0]
+    # a scalar distance (the end target) gets the same point
+    np.testing.assert_allclose(_ahead_from_nearest(upath, 1, upos, 8.0, sight=sight, hold_floor=5.0, floor_ray=True),
+                               ray[2], atol=1e-9)
+    # the line stops where it leaves sight: a second wall across x = 5.4 ends the run at the last probe before it
+    def boxed(p, pts):
+        pts = np.asarray(pts).reshape(-1, 2)
+        return sight(p, pts) & (pts[:, 0] < 5.4)
+    short = _ahead_from_nearest(upath, 1, upos, d, sight=boxed, hold_floor=5.0, floor_ray=True)
+    np.testing.assert_allclose(short[2], last + 0.25 * u, atol=1e-9)
+    # past a pillar, where the floor point is seen again, it is the floor along the path (as floor_in_sight)
+    path = np.array([[float(x), 0.0] for x in range(11)])
+
+    def pillar(p, pts):
+        pts = np.asarray(pts).reshape(-1, 2)
+        return ~((pts[:, 0] > 3.4) & (pts[:, 0] < 4.6))
+
+    np.testing.assert_allclose(_ahead_from_nearest(path, 1, np.array([0.0, 0.2]), np.array([1.0, 6.0]), sight=pillar,
+                                                   hold_floor=5.0, floor_ray=True), [[1.0, 0.0], [5.0, 0.0]])
+
+
 def test_in_sight_follows_the_scene_walls():
     env = NavEnv(scene="home", n_robots=0, n_humans=1)
     env.reset(seed=0)

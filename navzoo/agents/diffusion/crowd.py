@@ -141,7 +141,7 @@ def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance:
                         extend: bool = False,
                         sight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
                         hold_in_sight: bool = True, hold_floor: float = 0.0,
-                        floor_in_sight: bool = False) -> np.ndarray:
+                        floor_in_sight: bool = False, floor_ray: bool = False) -> np.ndarray:
     """The point ``distance`` metres ahead (or the points, for an array of distances) along the A*
     ``path`` from the point of the path nearest to ``pos``, searched from the segment that ends at
     waypoint ``start`` (the env's current one) on; with ``sight`` (:func:`_in_sight`), from the nearest point
@@ -156,8 +156,10 @@ def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance:
     ``pos`` (tested every :data:`SIGHT_STEP` m), or no nearer than ``hold_floor`` m along it: round a corner, the
     next plan goes on. With ``floor_in_sight`` the floor reaches only to a path point that ``pos`` sees again (the
     path past a pillar), the farthest such point up to ``hold_floor`` m; where the path stays hidden (round the
-    jamb of a door or a wall's end) the points stay where it leaves sight. A person who sees no point of its path
-    gets the points as without ``sight``.
+    jamb of a door or a wall's end) the points stay where it leaves sight. With ``floor_ray`` the points past the
+    floor's reach go on where the path stays hidden too, but along the line of sight from ``pos`` through the last
+    path point in sight (through a door, past a wall's end) instead of along the hidden path, as far as that line
+    stays in sight. A person who sees no point of its path gets the points as without ``sight``.
     """
     pts = np.vstack([pos[None], path]) if len(path) == 1 else path
     first = max(0, start - 1) if len(path) > 1 else 0
@@ -174,12 +176,35 @@ def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance:
                 first_hidden = int(np.argmin(seen))
                 held = probe[first_hidden - 1] if first_hidden > 0 else 0.0
                 floor = hold_floor
-                if floor_in_sight and hold_floor > held:
+                if (floor_in_sight or floor_ray) and hold_floor > held:
                     floor_seen = bool(sight(pos, _ahead_on_path(rest, proj, hold_floor, extend)[None])[0])
+                    if floor_ray and not floor_seen:
+                        return _ray_past_sight(rest, proj, pos, d, held, hold_floor - held, extend, sight)
                     back = probe[(probe <= hold_floor) & seen]
                     floor = hold_floor if floor_seen else (float(back.max()) if back.size else 0.0)
                 distance = np.minimum(d, max(held, floor))
     return _ahead_on_path(rest, proj, distance, extend)
+
+
+def _ray_past_sight(rest: np.ndarray, proj: np.ndarray, pos: np.ndarray, d: np.ndarray, held: float, reach: float,
+                    extend: bool, sight: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
+    """The points ``d`` metres ahead along the path (``rest`` from ``proj``) up to ``held`` metres, where the path
+    leaves the sight of ``pos``; past it, on along the straight line from ``pos`` through that point, up to ``reach``
+    metres beyond it and no farther than the line stays in sight (tested every :data:`SIGHT_STEP` m)."""
+    last = _ahead_on_path(rest, proj, held, extend)
+    u = last - pos
+    norm = float(np.linalg.norm(u))
+    run = 0.0
+    if norm > 1e-6 and reach > 0:
+        u = u / norm
+        probe = np.append(np.arange(SIGHT_STEP, reach, SIGHT_STEP), reach)
+        blocked = np.flatnonzero(~np.asarray(sight(pos, last[None] + probe[:, None] * u[None]), dtype=bool))
+        k = int(blocked[0]) if blocked.size else probe.size
+        run = float(probe[k - 1]) if k > 0 else 0.0
+    on_path = _ahead_on_path(rest, proj, np.minimum(d, held), extend)
+    if run == 0.0:
+        return on_path
+    return on_path + np.clip(d - held, 0.0, run)[..., None] * u
 
 
 def _clip_to_free(env: NavEnv, start: np.ndarray, end: np.ndarray, clearance: float, step: float = 0.1) -> np.ndarray:
@@ -217,7 +242,8 @@ def _freest_extension(env: NavEnv, start: np.ndarray, end: np.ndarray, clearance
 def _end_targets(env: NavEnv, people: np.ndarray, horizon_s: float, extend: bool,
                  past_goal_turn_deg: float = 0.0,
                  sight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
-                 hold_in_sight: bool = True, hold_floor_s: float = 0.0, floor_in_sight: bool = False) -> np.ndarray:
+                 hold_in_sight: bool = True, hold_floor_s: float = 0.0, floor_in_sight: bool = False,
+                 floor_ray: bool = False) -> np.ndarray:
     """(B, 2) world end targets of the plans of agents ``people``: the point of each one's A* path
     ``v_pref x horizon_s`` ahead (:func:`_ahead_from_nearest`). With ``extend``, a target that would be held at
     the goal is carried past it instead, along the path's last line (or turned by up to ``past_goal_turn_deg``
@@ -229,7 +255,8 @@ def _end_targets(env: NavEnv, people: np.ndarray, horizon_s: float, extend: bool
     """
     target = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * horizon_s,
                                            sight=sight, hold_in_sight=hold_in_sight,
-                                           hold_floor=env.v_pref[i] * hold_floor_s, floor_in_sight=floor_in_sight)
+                                           hold_floor=env.v_pref[i] * hold_floor_s, floor_in_sight=floor_in_sight,
+                                           floor_ray=floor_ray)
                        for i in people]).reshape(-1, 2)
     if not extend or len(people) == 0:
         return target
@@ -237,7 +264,8 @@ def _end_targets(env: NavEnv, people: np.ndarray, horizon_s: float, extend: bool
     past = np.linalg.norm(target - ends, axis=1) < 1e-9
     if past.any():
         carried = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * horizon_s,
-                                                True, sight, hold_in_sight, env.v_pref[i] * hold_floor_s, floor_in_sight)
+                                                True, sight, hold_in_sight, env.v_pref[i] * hold_floor_s, floor_in_sight,
+                                                floor_ray)
                             for i in people[past]])
         clearance = float(env.config.human_radius) + 0.1
         target[past] = (_freest_extension(env, ends[past], carried, clearance, past_goal_turn_deg)
@@ -282,6 +310,9 @@ class DiffusionCrowd:
         floor_in_sight: the floor reaches only to path points the person sees again (past a pillar), not round the
             jamb of a door or a wall's end, where the path stays hidden and the points stay where it leaves sight
             (:func:`_ahead_from_nearest`); off, the floor applies wherever the path goes (2026-12-03).
+        floor_ray: where the path stays hidden up to the floor, the floor's points go on along the line of sight
+            through the last path point in sight (through a door, past a wall's end), not along the hidden path
+            behind the wall; past a pillar, as ``floor_in_sight`` (:func:`_ahead_from_nearest`).
         k_neighbors, neighbor_radius: neighbours given to the model.
         seed: seed of the sampling noise (with the env's step count, so replays are exact).
         device: torch device of the model.
@@ -293,7 +324,8 @@ class DiffusionCrowd:
                  neighbor_radius: float = 10.0, seed: int = 0, device: str = "cpu",
                  path_weight: float = 20.0, blend_s: float = 1.2, smooth_weight: float = 0.0,
                  agent_buffer: float = 0.2, past_goal_turn_deg: float = 0.0, path_in_sight: bool = True,
-                 hold_in_sight: bool = True, hold_floor_s: float = 2.0, floor_in_sight: bool = False) -> None:
+                 hold_in_sight: bool = True, hold_floor_s: float = 2.0, floor_in_sight: bool = False,
+                 floor_ray: bool = False) -> None:
         if model is None or isinstance(model, (str, Path)):
             from navzoo.agents.diffusion.trainer import load_model
 
@@ -331,6 +363,7 @@ class DiffusionCrowd:
             raise ValueError(f"hold_floor_s must be >= 0, got {hold_floor_s!r}")
         self.hold_floor_s = float(hold_floor_s)
         self.floor_in_sight = bool(floor_in_sight)
+        self.floor_ray = bool(floor_ray)
         self.n = 0
 
     # ------------------------------------------------------------------ state
@@ -422,7 +455,7 @@ class DiffusionCrowd:
         extend = env.config.human_at_goal != "stop"
         sight = _in_sight(env) if self.path_in_sight else None
         target_w = _end_targets(env, people, horizon_s, extend, self.past_goal_turn_deg, sight, self.hold_in_sight,
-                                self.hold_floor_s, self.floor_in_sight)
+                                self.hold_floor_s, self.floor_in_sight, self.floor_ray)
         target = fdata.to_local(target_w[:, None, :], local)[:, 0]
         if self.cfg.goal:  # a goal-conditioned model gets the waypoint as its goal (guidance still pulls)
             batch["goal"] = torch.as_tensor(target, dtype=torch.float32)
@@ -435,7 +468,7 @@ class DiffusionCrowd:
             along = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * steps,
                                                   sight=sight, hold_in_sight=self.hold_in_sight,
                                                   hold_floor=env.v_pref[i] * self.hold_floor_s,
-                                                  floor_in_sight=self.floor_in_sight)
+                                                  floor_in_sight=self.floor_in_sight, floor_ray=self.floor_ray)
                               for i in people])  # (B, H, 2) world, held at the goal
             ref = fdata.to_local(along, local)
             costs.append(path_cost(torch.as_tensor(ref, dtype=torch.float32), self.path_weight,
