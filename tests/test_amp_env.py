@@ -156,6 +156,25 @@ def test_amp_world_is_deterministic():
     np.testing.assert_array_equal(run(), run())
 
 
+def test_an_episode_depends_on_its_seed_alone_not_on_the_episodes_before_it():
+    """reset rebuilds a stepped physics world (PyBullet's broadphase keeps its pair order over restoreState), so an
+    episode run after another equals the same episode in a fresh env; the bodies keep their ids."""
+    def episode(env, seed, steps=45):
+        env.reset(seed=seed)
+        for _ in range(steps):
+            env.step({a: np.zeros(env.action_space(a).shape, np.float32) for a in env.agents})
+        return env.unwrapped.pos.copy()
+
+    kw = dict(scene="station", n_robots=1, n_humans=6, human_model="amp", max_episode_steps_override=60)
+    fresh = episode(make(None, **kw), 2)
+    reused = make(None, **kw)
+    ids = (list(reused.unwrapped.amp.ids), list(reused.unwrapped.robots.ids), list(reused.unwrapped.bodies.body_ids))
+    episode(reused, 1)
+    np.testing.assert_array_equal(episode(reused, 2), fresh)
+    assert ids == (list(reused.unwrapped.amp.ids), list(reused.unwrapped.robots.ids),
+                   list(reused.unwrapped.bodies.body_ids))
+
+
 def test_pedestrian_only_world_runs_to_the_time_limit():
     env = make(None, scene="lobby", n_robots=0, n_humans=2, human_model="amp", max_episode_steps_override=15)
     env.reset(seed=0)

@@ -688,14 +688,6 @@ def _run_episode(task: EpisodeTask) -> dict[str, Any]:
         raise
     finally:
         _CURRENT = None
-    if getattr(nav, "amp", None) is not None:
-        # Physics pedestrians: PyBullet's broadphase keeps its order of overlapping pairs across restoreState, so the
-        # solver's contact order, and an episode of a reused world, depended on the episodes before it in the same
-        # worker (one episode of 1,070 steps ran 1,057 in a fresh worker). A fresh world per episode (about 0.6 s)
-        # makes every episode depend on its seed alone, as in the following protocol. The engine's
-        # deterministicOverlappingPairs=1 mends it at the root, but it also changes fresh worlds' trips, so it waits
-        # for the recorded AMP figures to be remeasured (docs/env.md).
-        _drop_env(task.env_kwargs, task.video)
     cell = task.cell
     record = {
         "method": task.method, "scene": cell.scene, "group": cell.group, "crowd": cell.crowd,

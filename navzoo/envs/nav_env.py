@@ -211,10 +211,8 @@ class NavEnv(ParallelEnv):
                 self.observation_spaces[a] = h_obs
                 self.action_spaces[a] = h_act
 
-        # PyBullet world: one client per env, bodies built once and moved on reset.
+        # PyBullet world: one client per env, bodies built once and moved on reset (physics pedestrians: rebuilt).
         self.client = sim.connect(gui=(render_mode == "human"))
-        p.setGravity(0, 0, -9.81, physicsClientId=self.client)
-        p.setTimeStep(cfg.dt / cfg.physics_substeps, physicsClientId=self.client)
         # Cameras render with EGL only if its plugin is loaded before the first body exists.
         self.egl = False
         if cfg.egl:
@@ -224,6 +222,26 @@ class NavEnv(ParallelEnv):
             if not self.egl:
                 warnings.warn("NavConfig.egl: PyBullet's EGL renderer is not available here (no eglRenderer "
                               "plugin or no OpenGL context); cameras use TinyRenderer", RuntimeWarning, stacklevel=2)
+        self.diffusion = None
+        if cfg.crowd_model == "diffusion" and self.n_humans > 0:
+            from navzoo.agents.diffusion.crowd import DiffusionCrowd
+
+            self.diffusion = DiffusionCrowd(cfg.diffusion_model, n_samples=cfg.diffusion_samples)
+        self._build_world()
+
+        self._seeded = False
+        self._needs_reset = True
+        self._world_stepped = False  # stepped since the world was built (reset rebuilds physics worlds then)
+        self.physics_time = 0.0  # seconds spent in stepSimulation, cumulative (for `navzoo speed`)
+        self._viewer_window = None
+
+    def _build_world(self) -> None:
+        """The PyBullet content of the env's client: the scene's bodies, the robots, the pedestrians' bodies, and
+        the state that ``reset`` restores. Called once by ``__init__``, and by ``reset`` after
+        ``p.resetSimulation`` in worlds of physics pedestrians (see :meth:`reset`)."""
+        cfg = self.config
+        p.setGravity(0, 0, -9.81, physicsClientId=self.client)
+        p.setTimeStep(cfg.dt / cfg.physics_substeps, physicsClientId=self.client)
         if self.egl:
             from navzoo.sensors.render import quiet
 
@@ -241,11 +259,6 @@ class NavEnv(ParallelEnv):
                 p.setCollisionFilterGroupMask(body, link, GROUP_STATIC, GROUP_STATIC | GROUP_ROBOT,
                                               physicsClientId=self.client)
         self.robots = RobotBodies(self.client, cfg.robot, self.n_robots)
-        self.diffusion = None
-        if cfg.crowd_model == "diffusion" and self.n_humans > 0:
-            from navzoo.agents.diffusion.crowd import DiffusionCrowd
-
-            self.diffusion = DiffusionCrowd(cfg.diffusion_model, n_samples=cfg.diffusion_samples)
         self.amp: AmpHumans | None = None
         if cfg.human_model == "amp" and self.n_humans > 0:
             self.amp = AmpHumans(self)  # sets the client's time step to 1/120 s
@@ -262,11 +275,6 @@ class NavEnv(ParallelEnv):
             self._body_kind[b] = "human"
         self._human_index = {b: j for j, b in enumerate(human_ids)}
         self._saved_state = p.saveState(physicsClientId=self.client)
-
-        self._seeded = False
-        self._needs_reset = True
-        self.physics_time = 0.0  # seconds spent in stepSimulation, cumulative (for `navzoo speed`)
-        self._viewer_window = None
 
     # ------------------------------------------------------------------ spaces
     def _build_observation_space(self) -> spaces.Space:
@@ -312,6 +320,14 @@ class NavEnv(ParallelEnv):
             # not fatal; malformed values of known keys are errors.
             gymnasium.logger.warn(f"ignoring unknown reset option(s) {unknown}; valid options: {list(RESET_OPTIONS)}")
         cfg = self.config
+        if self.amp is not None and self._world_stepped:
+            # Physics pedestrians: restoreState puts every body back, but PyBullet's broadphase keeps its order of
+            # overlapping pairs, the order in which the solver meets contacts, so an episode would depend on the
+            # episodes before it in this world. A rebuilt world (about 0.6 s for 10 people) is a fresh one, so an
+            # episode depends on its seed alone (docs/env.md, "Reproducibility"). Body ids come back the same.
+            p.resetSimulation(physicsClientId=self.client)
+            self._build_world()
+        self._world_stepped = False
         p.restoreState(self._saved_state, physicsClientId=self.client)
         for i in range(self.n_robots):
             self.robots.restore(i)
@@ -477,6 +493,7 @@ class NavEnv(ParallelEnv):
         if self._needs_reset:
             raise RuntimeError("NavEnv.step() called before reset() (or after the episode ended); call reset() first")
         act = self._validate_actions(actions)
+        self._world_stepped = True
         cfg = self.config
         R, dt = self.n_robots, cfg.dt
         acting = list(self.agents)
