@@ -1,0 +1,105 @@
+"""Compare two settings of the following protocol scene by scene, on the seeds both ran, and pool them with fixed
+scene weights.
+
+    python scripts/ablation_scene_weighted.py --a 'docs/results/diffusion_sight/floor2_s*' ... \\
+        --b 'docs/results/diffusion_sight/fis_s*' ... [--weight-seeds 0,1,2,3,4,5] [--json]
+
+``--a`` and ``--b`` take result files of ``scripts/amp_target_ablation.py`` (globs; one row per scene run). Scenes can
+have run on different numbers of seeds; each scene is compared on the seeds that both settings ran. The pooled rates
+weight each scene by its share of A's trips (per limit) or goal trips (per goal) on ``--weight-seeds``, the seeds that
+every scene ran, so that a scene run on more seeds does not weigh more. Paired: the mean difference B - A in
+successes per scene run, its standard error, and the seeds where B or A is ahead (docs/crowd.md, "Sixteen seeds").
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+OUTCOMES = ("success", "off_path", "fall", "timeout")
+
+
+def load(patterns: Sequence[str]) -> dict[tuple[str, int], dict]:
+    """Rows of the files matching ``patterns``, keyed by (scene, seed); a run found twice is an error."""
+    rows: dict[tuple[str, int], dict] = {}
+    files = sorted({f for pat in patterns for f in glob.glob(pat)})
+    if not files:
+        raise SystemExit(f"no result files match {list(patterns)}")
+    for f in files:
+        for line in Path(f).read_text().splitlines():
+            if line.strip():
+                r = json.loads(line)
+                key = (r["scene"], int(r["seed"]))
+                if key in rows:
+                    raise SystemExit(f"{f}: scene {key[0]} seed {key[1]} is in more than one file")
+                rows[key] = r
+    return rows
+
+
+def _trips(r: dict, by_goal: bool = False) -> int:
+    src = r["by_goal"] if by_goal else r
+    return sum(int(src[k]) for k in OUTCOMES)
+
+
+def _success(r: dict, by_goal: bool = False) -> int:
+    return int((r["by_goal"] if by_goal else r)["success"])
+
+
+def compare(a: dict, b: dict, weight_seeds: Sequence[int]) -> dict:
+    scenes = sorted({s for s, _ in a} & {s for s, _ in b})
+    out: dict = {"scenes": {}}
+    for by_goal, name in ((False, "per_limit"), (True, "per_goal")):
+        w = {s: sum(_trips(a[(s, k)], by_goal) for k in weight_seeds if (s, k) in a) for s in scenes}
+        total = sum(w.values())
+        if total == 0:
+            raise SystemExit(f"A has no trips on --weight-seeds {list(weight_seeds)}")
+        pooled = {"a": 0.0, "b": 0.0}
+        for s in scenes:
+            seeds = sorted(k for (sc, k) in a if sc == s and (s, k) in b)
+            rate = {x: sum(_success(rows[(s, k)], by_goal) for k in seeds) /
+                    max(1, sum(_trips(rows[(s, k)], by_goal) for k in seeds)) for x, rows in (("a", a), ("b", b))}
+            for x in rate:
+                pooled[x] += w[s] / total * rate[x]
+            row = out["scenes"].setdefault(s, {"seeds": seeds, "weight": {}})
+            row[name] = rate
+            row["weight"][name] = w[s] / total
+            if not by_goal:
+                d = np.array([_success(b[(s, k)]) - _success(a[(s, k)]) for k in seeds], dtype=float)
+                row["paired_success_diff"] = {
+                    "mean": float(d.mean()),
+                    "se": float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else float("nan"),
+                    "b_ahead": int((d > 0).sum()), "a_ahead": int((d < 0).sum())}
+        out[name] = pooled
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--a", nargs="+", required=True, help="result files (globs) of setting A")
+    ap.add_argument("--b", nargs="+", required=True, help="result files (globs) of setting B")
+    ap.add_argument("--weight-seeds", default="0,1,2,3,4,5", help="seeds whose trips of A weigh the scenes")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args(argv)
+    res = compare(load(args.a), load(args.b), [int(s) for s in args.weight_seeds.split(",")])
+    if args.json:
+        print(json.dumps(res, indent=1))
+        return
+    print("| scene | seeds | weight per limit | A per limit | B per limit | A per goal | B per goal | "
+          "B - A successes per run (± s.e.) | runs B / A ahead |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for s, r in res["scenes"].items():
+        p = r["paired_success_diff"]
+        print(f"| {s} | {len(r['seeds'])} | {r['weight']['per_limit']:.3f} | {r['per_limit']['a']:.3f} | "
+              f"{r['per_limit']['b']:.3f} | {r['per_goal']['a']:.3f} | {r['per_goal']['b']:.3f} | "
+              f"{p['mean']:+.1f} ± {p['se']:.1f} | {p['b_ahead']} / {p['a_ahead']} |")
+    print(f"| weighted pool | | | {res['per_limit']['a']:.3f} | {res['per_limit']['b']:.3f} | "
+          f"{res['per_goal']['a']:.3f} | {res['per_goal']['b']:.3f} | | |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,51 @@
+"""scripts/ablation_scene_weighted.py: scenes compared on the seeds both settings ran, pooled with fixed weights."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import pytest
+
+_SPEC = importlib.util.spec_from_file_location(
+    "ablation_scene_weighted", Path(__file__).resolve().parents[1] / "scripts" / "ablation_scene_weighted.py")
+sw = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(sw)
+
+
+def _row(scene, seed, success, timeout, goal_success=None):
+    g = success if goal_success is None else goal_success
+    return {"scene": scene, "seed": seed, "success": success, "off_path": 0, "fall": 0, "timeout": timeout,
+            "by_goal": {"success": g, "off_path": 0, "fall": 0, "timeout": timeout}}
+
+
+def _write(path, rows):
+    path.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    return str(path)
+
+
+def test_scenes_on_more_seeds_do_not_weigh_more_and_pairs_are_by_seed(tmp_path, capsys):
+    # "wide": 10 trips per run, seeds 0-1 only; "deep": 10 trips per run, seeds 0-3 (B also ran seed 9, A did not)
+    a = [_row("wide", 0, 8, 2), _row("wide", 1, 8, 2)] + [_row("deep", k, 5, 5) for k in range(4)]
+    b = [_row("wide", 0, 9, 1), _row("wide", 1, 7, 3)] + [_row("deep", k, 7, 3) for k in range(4)]
+    b.append(_row("deep", 9, 0, 10))  # not paired: left out
+    res = sw.compare(sw.load([_write(tmp_path / "a.jsonl", a)]), sw.load([_write(tmp_path / "b.jsonl", b)]), [0, 1])
+    assert res["scenes"]["deep"]["seeds"] == [0, 1, 2, 3]
+    assert res["scenes"]["deep"]["per_limit"] == {"a": 0.5, "b": 0.7}
+    assert res["scenes"]["wide"]["weight"]["per_limit"] == pytest.approx(0.5)  # 20 trips each on seeds 0-1
+    assert res["per_limit"]["a"] == pytest.approx(0.5 * 0.8 + 0.5 * 0.5)
+    assert res["per_limit"]["b"] == pytest.approx(0.5 * 0.8 + 0.5 * 0.7)
+    p = res["scenes"]["wide"]["paired_success_diff"]
+    assert (p["mean"], p["b_ahead"], p["a_ahead"]) == (0.0, 1, 1)
+    sw.main(["--a", str(tmp_path / "a.jsonl"), "--b", str(tmp_path / "b.jsonl"), "--weight-seeds", "0,1"])
+    assert "| weighted pool | | | 0.650 | 0.750 |" in capsys.readouterr().out
+
+
+def test_a_run_in_two_files_and_no_files_are_refused(tmp_path):
+    f1 = _write(tmp_path / "x.jsonl", [_row("s", 0, 1, 1)])
+    f2 = _write(tmp_path / "y.jsonl", [_row("s", 0, 1, 1)])
+    with pytest.raises(SystemExit, match="more than one file"):
+        sw.load([f1, f2])
+    with pytest.raises(SystemExit, match="no result files"):
+        sw.load([str(tmp_path / "none*.jsonl")])
