@@ -309,10 +309,13 @@ class DiffusionCrowd:
             pillars (docs/crowd.md, "A floor under the held path points").
         floor_in_sight: the floor reaches only to path points the person sees again (past a pillar), not round the
             jamb of a door or a wall's end, where the path stays hidden and the points stay where it leaves sight
-            (:func:`_ahead_from_nearest`); off, the floor applies wherever the path goes (2026-12-03).
+            (:func:`_ahead_from_nearest`); off, the floor applies wherever the path goes (2026-12-03). Over 16
+            seeds it is ahead of the default (docs/crowd.md, "Sixteen seeds"); it is to become the default once the
+            diffusion figures are remeasured with it.
         floor_ray: where the path stays hidden up to the floor, the floor's points go on along the line of sight
             through the last path point in sight (through a door, past a wall's end), not along the hidden path
-            behind the wall; past a pillar, as ``floor_in_sight`` (:func:`_ahead_from_nearest`).
+            behind the wall; past a pillar, as ``floor_in_sight`` (:func:`_ahead_from_nearest`). Measured behind
+            both on six seeds, so off (docs/crowd.md, "The floor along the line of sight").
         k_neighbors, neighbor_radius: neighbours given to the model.
         seed: seed of the sampling noise (with the env's step count, so replays are exact).
         device: torch device of the model.
