@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-OUTCOMES = ("success", "off_path", "fall", "timeout")
+from navzoo.benchmark.pedestrians import goal_trip_rates
 
 
 def load(patterns: Sequence[str]) -> dict[tuple[str, int], dict]:
@@ -41,35 +41,30 @@ def load(patterns: Sequence[str]) -> dict[tuple[str, int], dict]:
     return rows
 
 
-def _trips(r: dict, by_goal: bool = False) -> int:
-    src = r["by_goal"] if by_goal else r
-    return sum(int(src[k]) for k in OUTCOMES)
-
-
-def _success(r: dict, by_goal: bool = False) -> int:
-    return int((r["by_goal"] if by_goal else r)["success"])
+def _pooled(rows: Sequence[dict], by_goal: bool) -> dict:
+    """Success rate and trips of scene runs pooled (trips counted together), per limit or one trip per goal."""
+    return goal_trip_rates([r["by_goal"] if by_goal else r for r in rows])
 
 
 def compare(a: dict, b: dict, weight_seeds: Sequence[int]) -> dict:
     scenes = sorted({s for s, _ in a} & {s for s, _ in b})
     out: dict = {"scenes": {}}
     for by_goal, name in ((False, "per_limit"), (True, "per_goal")):
-        w = {s: sum(_trips(a[(s, k)], by_goal) for k in weight_seeds if (s, k) in a) for s in scenes}
+        w = {s: _pooled([a[(s, k)] for k in weight_seeds if (s, k) in a], by_goal)["trips"] for s in scenes}
         total = sum(w.values())
         if total == 0:
             raise SystemExit(f"A has no trips on --weight-seeds {list(weight_seeds)}")
         pooled = {"a": 0.0, "b": 0.0}
         for s in scenes:
             seeds = sorted(k for (sc, k) in a if sc == s and (s, k) in b)
-            rate = {x: sum(_success(rows[(s, k)], by_goal) for k in seeds) /
-                    max(1, sum(_trips(rows[(s, k)], by_goal) for k in seeds)) for x, rows in (("a", a), ("b", b))}
+            rate = {x: _pooled([rows[(s, k)] for k in seeds], by_goal)["success_rate"] for x, rows in (("a", a), ("b", b))}
             for x in rate:
                 pooled[x] += w[s] / total * rate[x]
             row = out["scenes"].setdefault(s, {"seeds": seeds, "weight": {}})
             row[name] = rate
             row["weight"][name] = w[s] / total
             if not by_goal:
-                d = np.array([_success(b[(s, k)]) - _success(a[(s, k)]) for k in seeds], dtype=float)
+                d = np.array([b[(s, k)]["success"] - a[(s, k)]["success"] for k in seeds], dtype=float)
                 row["paired_success_diff"] = {
                     "mean": float(d.mean()),
                     "se": float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else float("nan"),

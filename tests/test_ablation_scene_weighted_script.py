@@ -16,8 +16,8 @@ _SPEC.loader.exec_module(sw)
 
 def _row(scene, seed, success, timeout, goal_success=None):
     g = success if goal_success is None else goal_success
-    return {"scene": scene, "seed": seed, "success": success, "off_path": 0, "fall": 0, "timeout": timeout,
-            "by_goal": {"success": g, "off_path": 0, "fall": 0, "timeout": timeout}}
+    counts = {"off_path": 0, "fall": 0, "timeout": timeout, "map_trips": 0, "agent_trips": 0}
+    return {"scene": scene, "seed": seed, "success": success, **counts, "by_goal": {"success": g, **counts}}
 
 
 def _write(path, rows):

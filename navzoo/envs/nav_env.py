@@ -323,7 +323,7 @@ class NavEnv(ParallelEnv):
         if self.amp is not None and self._world_stepped:
             # Physics pedestrians: restoreState puts every body back, but PyBullet's broadphase keeps its order of
             # overlapping pairs, the order in which the solver meets contacts, so an episode would depend on the
-            # episodes before it in this world. A rebuilt world (about 0.6 s for 10 people) is a fresh one, so an
+            # episodes before it in this world. A rebuilt world (a few hundredths of a second) is a fresh one, so an
             # episode depends on its seed alone (docs/env.md, "Reproducibility"). Body ids come back the same.
             p.resetSimulation(physicsClientId=self.client)
             self._build_world()

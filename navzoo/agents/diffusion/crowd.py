@@ -201,10 +201,7 @@ def _ray_past_sight(rest: np.ndarray, proj: np.ndarray, pos: np.ndarray, d: np.n
         blocked = np.flatnonzero(~np.asarray(sight(pos, last[None] + probe[:, None] * u[None]), dtype=bool))
         k = int(blocked[0]) if blocked.size else probe.size
         run = float(probe[k - 1]) if k > 0 else 0.0
-    on_path = _ahead_on_path(rest, proj, np.minimum(d, held), extend)
-    if run == 0.0:
-        return on_path
-    return on_path + np.clip(d - held, 0.0, run)[..., None] * u
+    return _ahead_on_path(rest, proj, np.minimum(d, held), extend) + np.clip(d - held, 0.0, run)[..., None] * u
 
 
 def _clip_to_free(env: NavEnv, start: np.ndarray, end: np.ndarray, clearance: float, step: float = 0.1) -> np.ndarray:
