@@ -9,6 +9,8 @@ have run on different numbers of seeds; each scene is compared on the seeds that
 weight each scene by its share of A's trips (per limit) or goal trips (per goal) on ``--weight-seeds``, the seeds that
 every scene ran, so that a scene run on more seeds does not weigh more. Paired: the mean difference B - A in
 successes per scene run, its standard error, and the seeds where B or A is ahead (docs/crowd.md, "Sixteen seeds").
+With ``--by-seed``, each seed's scene runs are pooled instead and the settings compared seed by seed. ``--json`` also
+gives each scene's successes seed by seed.
 """
 
 from __future__ import annotations
@@ -62,6 +64,8 @@ def compare(a: dict, b: dict, weight_seeds: Sequence[int]) -> dict:
                 pooled[x] += w[s] / total * rate[x]
             row = out["scenes"].setdefault(s, {"seeds": seeds, "weight": {}})
             row[name] = rate
+            if not by_goal:
+                row["success_by_seed"] = {x: {k: rows[(s, k)]["success"] for k in seeds} for x, rows in (("a", a), ("b", b))}
             row["weight"][name] = w[s] / total
             if not by_goal:
                 d = np.array([b[(s, k)]["success"] - a[(s, k)]["success"] for k in seeds], dtype=float)
@@ -73,13 +77,49 @@ def compare(a: dict, b: dict, weight_seeds: Sequence[int]) -> dict:
     return out
 
 
+def by_seed(a: dict, b: dict) -> dict:
+    """Per seed, success per limit of all the scene runs of that seed pooled (as ``amp_target_ablation.py
+    --summary`` pools a seed), on the seeds where both settings ran the same scenes; the paired differences B - A
+    (mean and standard error, in points) and the spread of A's seeds (standard deviation, in points)."""
+    seeds = sorted({k for _, k in a} & {k for _, k in b})
+    rates: dict[str, list[float]] = {"a": [], "b": []}
+    kept = []
+    for k in seeds:
+        scenes = sorted(s for s, kk in a if kk == k)
+        if scenes != sorted(s for s, kk in b if kk == k):
+            continue
+        kept.append(k)
+        for x, rows in (("a", a), ("b", b)):
+            rates[x].append(_pooled([rows[(s, k)] for s in scenes], False)["success_rate"])
+    if len(kept) < 2:
+        raise SystemExit("fewer than two seeds where both settings ran the same scenes")
+    d = 100 * (np.array(rates["b"]) - np.array(rates["a"]))
+    return {"seeds": kept, "a": rates["a"], "b": rates["b"], "diff_points": d.round(1).tolist(),
+            "diff_mean_points": float(d.mean()), "diff_se_points": float(d.std(ddof=1) / np.sqrt(len(d))),
+            "a_sd_points": float(100 * np.std(rates["a"], ddof=1))}
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--a", nargs="+", required=True, help="result files (globs) of setting A")
     ap.add_argument("--b", nargs="+", required=True, help="result files (globs) of setting B")
     ap.add_argument("--weight-seeds", default="0,1,2,3,4,5", help="seeds whose trips of A weigh the scenes")
+    ap.add_argument("--by-seed", action="store_true",
+                    help="pool each seed's scene runs instead, and compare the settings seed by seed")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
+    if args.by_seed:
+        res = by_seed(load(args.a), load(args.b))
+        if args.json:
+            print(json.dumps(res, indent=1))
+            return
+        print("| seed | A per limit | B per limit | B - A (points) |")
+        print("|---|---|---|---|")
+        for k, ra, rb, d in zip(res["seeds"], res["a"], res["b"], res["diff_points"], strict=True):
+            print(f"| {k} | {ra:.3f} | {rb:.3f} | {d:+.1f} |")
+        print(f"B - A: {res['diff_mean_points']:+.2f} ± {res['diff_se_points']:.2f} points (mean ± s.e. over "
+              f"{len(res['seeds'])} seeds); A's seeds spread {res['a_sd_points']:.1f} points (s.d.)")
+        return
     res = compare(load(args.a), load(args.b), [int(s) for s in args.weight_seeds.split(",")])
     if args.json:
         print(json.dumps(res, indent=1))

@@ -14,6 +14,9 @@ positions of each pair of runs (docs/env.md, "Reproducibility"):
 - ``fresh_sorted_vs_unsorted_m``: what that flag does to a fresh world's trips (why it is not the fix);
 
 and the median seconds of ``reset`` with and without the rebuild (``reset_s``, ``reset_restore_only_s``).
+
+With ``--kinematic``: the same reused-against-fresh distance for kinematic people (restored, never rebuilt) with two
+robots driving (``kinematic_<crowd>_reused_vs_fresh_m`` for the social-force and diffusion crowds).
 """
 
 from __future__ import annotations
@@ -81,13 +84,37 @@ def measure(scene: str = "station", people: int = 10, steps: int = 150, timing: 
     return out
 
 
+def measure_kinematic(scene: str = "station", people: int = 10, steps: int = 150) -> dict[str, float]:
+    """Reused against fresh for kinematic people and two robots (forward at 0.8, turning at 0.3), per crowd model."""
+
+    def run(env, seed: int) -> np.ndarray:
+        env.reset(seed=seed)
+        for _ in range(steps):
+            env.step({a: np.array([0.8, 0.3], np.float32) for a in env.agents})
+            if not env.agents:
+                break
+        return env.unwrapped.pos.copy()
+
+    out = {}
+    with one_torch_thread():
+        for crowd in ("sfm", "diffusion"):
+            kw = dict(scene=scene, n_humans=people, n_robots=2, crowd_model=crowd)
+            fresh = run(make(None, **kw), 2)
+            reused = make(None, **kw)
+            run(reused, 1)
+            out[f"kinematic_{crowd}_reused_vs_fresh_m"] = float(np.abs(run(reused, 2) - fresh).max())
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scene", default="station")
     ap.add_argument("--people", type=int, default=10)
     ap.add_argument("--steps", type=int, default=150)
+    ap.add_argument("--kinematic", action="store_true", help="kinematic people instead (see the module doc)")
     args = ap.parse_args()
-    print(json.dumps(measure(args.scene, args.people, args.steps)))
+    fn = measure_kinematic if args.kinematic else measure
+    print(json.dumps(fn(args.scene, args.people, args.steps)))
 
 
 if __name__ == "__main__":

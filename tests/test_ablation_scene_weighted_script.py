@@ -49,3 +49,20 @@ def test_a_run_in_two_files_and_no_files_are_refused(tmp_path):
         sw.load([f1, f2])
     with pytest.raises(SystemExit, match="no result files"):
         sw.load([str(tmp_path / "none*.jsonl")])
+
+
+def test_by_seed_pools_each_seeds_scenes_and_pairs_the_settings(tmp_path, capsys):
+    a = [_row(s, k, 5, 5) for s in ("x", "y") for k in range(3)]
+    b = [_row("x", k, 5 + k, 5 - k) for k in range(3)] + [_row("y", k, 5, 5) for k in range(3)]
+    b.append(_row("x", 7, 9, 1))  # a seed A did not run: left out
+    res = sw.by_seed(sw.load([_write(tmp_path / "a.jsonl", a)]), sw.load([_write(tmp_path / "b.jsonl", b)]))
+    assert res["seeds"] == [0, 1, 2]
+    assert res["b"] == pytest.approx([0.5, 0.55, 0.6])  # 20 trips per seed, seed k adds k successes
+    assert res["diff_points"] == [0.0, 5.0, 10.0]
+    assert res["diff_mean_points"] == pytest.approx(5.0) and res["diff_se_points"] == pytest.approx(5.0 / 3 ** 0.5)
+    assert res["a_sd_points"] == 0.0
+    # the scene comparison gives each scene's successes seed by seed
+    scenes = sw.compare(sw.load([str(tmp_path / "a.jsonl")]), sw.load([str(tmp_path / "b.jsonl")]), [0])["scenes"]
+    assert scenes["x"]["success_by_seed"] == {"a": {0: 5, 1: 5, 2: 5}, "b": {0: 5, 1: 6, 2: 7}}
+    sw.main(["--by-seed", "--a", str(tmp_path / "a.jsonl"), "--b", str(tmp_path / "b.jsonl")])
+    assert "B - A: +5.00 ± 2.89 points" in capsys.readouterr().out

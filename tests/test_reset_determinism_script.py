@@ -19,3 +19,8 @@ def test_a_reset_world_repeats_a_fresh_one():
     assert out["reused_vs_fresh_m"] == 0.0
     assert out["restored_only_sorted_pairs_vs_fresh_m"] == 0.0
     assert all(v >= 0.0 for v in out.values())
+
+
+def test_a_reused_kinematic_world_repeats_a_fresh_one_without_a_rebuild():
+    out = rd.measure_kinematic("station", 3, 20)
+    assert out == {"kinematic_sfm_reused_vs_fresh_m": 0.0, "kinematic_diffusion_reused_vs_fresh_m": 0.0}
