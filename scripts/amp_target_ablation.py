@@ -200,8 +200,37 @@ def done_runs(rows: list[dict], configs: list[dict]) -> set[tuple]:
     return {(*_group(r), r["scene"]) for r in rows}
 
 
-def summary(path: str, by_scene: bool = False, pooled: bool = False, seeds: list[int] | None = None) -> str:
-    """Markdown table of a result file: one line per configuration, crowd model and seed, or with
+_RUN_FIELDS = ("success", "off_path", "fall", "timeout", "map_trips", "agent_trips", "err_sum", "err_n", "by_goal")
+
+
+def read_rows(paths: str | list[str]) -> list[dict]:
+    """The rows of one or more result files. A run (configuration, crowd model and settings, seed, bodies,
+    scene) found in several files is kept once if its counts agree (the machines repeat a run trip for trip),
+    and refused if they differ: two different runs under one name would be pooled."""
+    rows: list[dict] = []
+    seen: dict[tuple, tuple[str, dict]] = {}
+    for path in [paths] if isinstance(paths, str) else paths:
+        for line in Path(path).read_text().splitlines():
+            if not line.strip():
+                continue
+            r = json.loads(line)
+            key = (*_group(r), r["scene"])
+            if key in seen:
+                first, other = seen[key]
+                if any(r.get(k) != other.get(k) and not (k == "err_sum" and abs(r[k] - other[k]) < 1e-6 * max(1.0, abs(r[k])))
+                       for k in _RUN_FIELDS):
+                    raise ValueError(f"run {key[0]!r} seed {key[3]} {key[5]} is in {first} and {path} with different "
+                                     "counts: not the same run")
+                continue
+            seen[key] = (path, r)
+            rows.append(r)
+    return rows
+
+
+def summary(path: str | list[str], by_scene: bool = False, pooled: bool = False,
+            seeds: list[int] | None = None) -> str:
+    """Markdown table of one or more result files (:func:`read_rows`, a run found twice counted once): one
+    line per configuration, crowd model and seed, or with
     ``by_scene`` one line per configuration, crowd model and scene, pooling the seeds, or with ``pooled``
     one line per configuration and crowd model, pooling seeds and scenes (trips counted together, not
     rates averaged); ``seeds`` keeps only those seeds' rows. Where the rows hold them, a second line counts
@@ -210,11 +239,11 @@ def summary(path: str, by_scene: bool = False, pooled: bool = False, seeds: list
 
     if by_scene and pooled:
         raise ValueError("choose one of by_scene and pooled")
-    rows = [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+    rows = read_rows(path)
     if seeds is not None:
         missing = sorted(set(seeds) - {r["seed"] for r in rows})
         if missing:
-            raise ValueError(f"{path} holds no rows of seed(s) {', '.join(map(str, missing))}")
+            raise ValueError(f"{path if isinstance(path, str) else ', '.join(path)} holds no rows of seed(s) {', '.join(map(str, missing))}")
         rows = [r for r in rows if r["seed"] in seeds]
     keys = ("success", "off_path", "fall", "timeout")
     lines = ["| configuration | trips | success | off path | fall | timeout | map contact | agent contact | path error (m) |",
@@ -268,7 +297,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="pedestrian bodies (default amp: physics pedestrians tracking the crowd model's targets)")
     ap.add_argument("--diffusion-set", default="", metavar="K=V,...", help="diffusion crowd settings for every run")
     ap.add_argument("--out", default="amp_target_ablation.jsonl")
-    ap.add_argument("--summary", metavar="JSONL", help="print the table of a result file and exit")
+    ap.add_argument("--summary", metavar="JSONL", nargs="+",
+                    help="print the table of one or more result files and exit (a run in several files counted once)")
     ap.add_argument("--by-scene", action="store_true", help="with --summary: one line per scene, seeds pooled")
     ap.add_argument("--pooled", action="store_true",
                     help="with --summary: one line per configuration, seeds and scenes pooled")
@@ -279,7 +309,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             only = None if args.summary_seeds is None else [int(x) for x in args.summary_seeds.split(",")]
             print(summary(args.summary, by_scene=args.by_scene, pooled=args.pooled, seeds=only))
-        except ValueError as e:
+        except (ValueError, OSError) as e:
             ap.error(str(e))
         return 0
     from navzoo.benchmark.pedestrians import SCENES, people_per_scene

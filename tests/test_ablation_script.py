@@ -205,3 +205,22 @@ def test_the_pooled_summary_counts_trips_over_seeds_and_scenes(tmp_path, capsys)
     assert "no rows of seed(s) 7" in capsys.readouterr().err
     assert ablation.main(["--summary", str(path), "--pooled", "--summary-seeds", "2"]) == 0
     assert "| c, seeds 2 pooled (1 scenes) | 8 | 0.875 |" in capsys.readouterr().out
+
+
+def test_a_summary_of_several_files_counts_a_repeated_run_once_and_refuses_a_different_one(tmp_path, capsys):
+    cfg = ablation.parse_config("c:0.1:0.1:4:2.0:0")
+    first, second, clash = tmp_path / "a.jsonl", tmp_path / "b.jsonl", tmp_path / "c.jsonl"
+    first.write_text(json.dumps(_row(cfg, "lobby", 0, success=3)) + "\n" + json.dumps(_row(cfg, "home", 0, success=1)))
+    # the lobby run again (another machine repeats it trip for trip, path error to rounding) and a new seed
+    again = _row(cfg, "lobby", 0, success=3, err_sum=1.0 + 1e-12)
+    second.write_text(json.dumps(again) + "\n" + json.dumps(_row(cfg, "lobby", 1, success=5)) + "\n")
+    table = ablation.summary([str(first), str(second)], pooled=True).splitlines()
+    # (3 + 1 + 5) successes of (4 + 2 + 6) trips: the repeated lobby run counted once
+    assert table[2].startswith("| c, seeds 0,1 pooled (2 scenes) | 12 | 0.750 |")
+    assert ablation.summary(str(first), pooled=True) == ablation.summary([str(first), str(first)], pooled=True)
+    clash.write_text(json.dumps(_row(cfg, "lobby", 0, success=4)) + "\n")
+    with pytest.raises(ValueError, match=r"seed 0 lobby is in .*a\.jsonl and .*c\.jsonl with different counts"):
+        ablation.summary([str(first), str(clash)])
+    with pytest.raises(SystemExit):
+        ablation.main(["--summary", str(first), str(tmp_path / "missing.jsonl")])
+    assert "missing.jsonl" in capsys.readouterr().err
