@@ -179,3 +179,17 @@ def test_report_merge_refuses_runs_that_do_not_compare(tmp_path, capsys):
     assert "needs --out" in capsys.readouterr().err
     assert main(["report", str(a), str(tmp_path / "nothing"), "--out", str(tmp_path / "r3")]) == 2
     assert "not a benchmark run" in capsys.readouterr().err
+
+
+def test_tables_show_fallen_people_only_for_physics_crowds():
+    from navzoo.benchmark.report import _html_table, _md_table
+
+    base = {"method": "orca", "scene": "home", "crowd": "sfm", "level": "n10", "success": True, "nav_time_s": 8.0,
+            "time_limit_s": 20.0}
+    kinematic = summarize([dict(base), dict(base)], ("method", "crowd"))
+    assert "people fallen" not in _md_table(kinematic, [("method", "method")])[0]
+    physics = summarize([dict(base, people_fallen=0), dict(base, people_fallen=3)], ("method", "crowd"))
+    head, _, row = _md_table(physics, [("method", "method")])
+    assert head.endswith("| people fallen |")
+    assert row.split("|")[-2].strip().startswith("1.50 ± ")  # the mean per episode, with its interval
+    assert "<th>people fallen</th>" in _html_table(physics, [("method", "method")])

@@ -85,7 +85,15 @@ HEADLINE: tuple[tuple[str, str, int], ...] = (
     ("intrusion_time_ratio", "intrusion", 3),
     ("mean_jerk", "jerk (m/s³)", 1),
 )
+# Physics pedestrians (env human_model "amp"): people who fell during an episode, mean per episode. The column
+# appears only where the records hold it, so reports of kinematic crowds keep their columns.
+FALLEN_COLUMN = ("people_fallen", "people fallen", 2)
 MAX_TRAJECTORY_PLOTS = 48
+
+
+def _columns(rows: Sequence[Mapping[str, Any]]) -> tuple[tuple[str, str, int], ...]:
+    """The table columns: :data:`HEADLINE`, and the fallen people where any row holds them."""
+    return HEADLINE + ((FALLEN_COLUMN,) if any(FALLEN_COLUMN[0] in r for r in rows) else ())
 
 
 def scene_group(scene: str) -> str:
@@ -212,25 +220,27 @@ def level_text(level: str) -> str:
 
 
 def _md_table(rows: Sequence[Mapping[str, Any]], first: Sequence[tuple[str, str]]) -> list[str]:
-    head = [h for _, h in first] + ["n"] + [h for _, h, _ in HEADLINE]
+    columns = _columns(rows)
+    head = [h for _, h in first] + ["n"] + [h for _, h, _ in columns]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         cells = []
         for k, _ in first:
             cells.append(level_text(r[k]) if k == "level" else str(r[k]))
         cells.append(str(r["n_episodes"]))
-        cells += [_cell(r, m, d) for m, _, d in HEADLINE]
+        cells += [_cell(r, m, d) for m, _, d in columns]
         lines.append("| " + " | ".join(cells) + " |")
     return lines
 
 
 def _html_table(rows: Sequence[Mapping[str, Any]], first: Sequence[tuple[str, str]]) -> str:
-    head = [h for _, h in first] + ["n"] + [h for _, h, _ in HEADLINE]
+    columns = _columns(rows)
+    head = [h for _, h in first] + ["n"] + [h for _, h, _ in columns]
     out = ["<table><thead><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr></thead><tbody>"]
     for r in rows:
         cells = [level_text(r[k]) if k == "level" else str(r[k]) for k, _ in first]
         cells.append(str(r["n_episodes"]))
-        cells += [_cell(r, m, d) for m, _, d in HEADLINE]
+        cells += [_cell(r, m, d) for m, _, d in columns]
         out.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
     out.append("</tbody></table>")
     return "\n".join(out)
