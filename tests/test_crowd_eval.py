@@ -251,3 +251,23 @@ def test_reliability_rows_say_how_their_people_walked():
     assert "speed_w1" not in no_real["sfm+kinematic"]["walked"]
     md = ce.markdown({"reliability": rows})
     assert "| walked in the reliability runs |" in md and "| sfm+kinematic | " in md
+
+
+def test_a_realism_scene_runs_on_one_torch_thread_and_gives_the_callers_setting_back(monkeypatch):
+    torch = pytest.importorskip("torch")
+    seen = []
+    real_kinematics = ce.track_kinematics
+
+    def spy(*args, **kwargs):
+        seen.append(torch.get_num_threads())
+        return real_kinematics(*args, **kwargs)
+
+    monkeypatch.setattr(ce, "track_kinematics", spy)
+    before = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        row = ce.crowd_scene("sfm", "corridor", 2, seconds=1.0)
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)
+    assert seen == [1] and row["pedestrians"] == 2

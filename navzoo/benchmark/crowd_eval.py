@@ -366,7 +366,19 @@ def crowd_scene(crowd: str, scene: str, n: int, seconds: float, seed: int = 0, d
                 step: float = STEP, max_jump: float = MAX_JUMP_M, min_start_speed: float = MIN_START_SPEED,
                 overlap_m: float = OVERLAP_M) -> dict[str, Any]:
     """One scene of :func:`realism`: ``n`` kinematic pedestrians of ``crowd`` for ``seconds``; returns
-    the pooled kinematics samples and collision counts (at the sim's dt)."""
+    the pooled kinematics samples and collision counts (at the sim's dt).
+
+    The run uses one torch thread, however it is called (:func:`navzoo.torch_threads.one_torch_thread`), so the
+    diffusion crowd walks the same in ``--workers 1`` (the calling process) as in a pool of single-threaded
+    workers; until 2026-12-03 the calling process used all its threads, and the two could differ."""
+    from navzoo.torch_threads import one_torch_thread
+
+    with one_torch_thread():
+        return _crowd_scene(crowd, scene, n, seconds, seed, dt, step, max_jump, min_start_speed)
+
+
+def _crowd_scene(crowd: str, scene: str, n: int, seconds: float, seed: int, dt: float, step: float,
+                 max_jump: float, min_start_speed: float) -> dict[str, Any]:
     from navzoo.agents.crowd import CrowdPolicy
     from navzoo.envs.nav_env import NavEnv
     from navzoo.envs.wrappers import FrozenAgents
