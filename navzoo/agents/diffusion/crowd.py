@@ -306,8 +306,8 @@ class DiffusionCrowd:
             pillars (docs/crowd.md, "A floor under the held path points").
         floor_in_sight: the floor reaches only to path points the person sees again (past a pillar), not round the
             jamb of a door or a wall's end, where the path stays hidden and the points stay where it leaves sight
-            (:func:`_ahead_from_nearest`); off, the floor applies wherever the path goes (the default on
-            2026-12-03). On by default since 2026-12-03: over 16 seeds it reaches more goals than the plain floor,
+            (:func:`_ahead_from_nearest`); off, the floor applies wherever the path goes (the default
+            until 2026-12-03). On by default since then: over 16 seeds it reaches more goals than the plain floor,
             most in the home and the lobby (docs/crowd.md, "Sixteen seeds").
         floor_ray: where the path stays hidden up to the floor, the floor's points go on along the line of sight
             through the last path point in sight (through a door, past a wall's end), not along the hidden path
