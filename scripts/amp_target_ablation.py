@@ -200,13 +200,20 @@ def done_runs(rows: list[dict], configs: list[dict]) -> set[tuple]:
     return {(*_group(r), r["scene"]) for r in rows}
 
 
-_RUN_FIELDS = ("success", "off_path", "fall", "timeout", "map_trips", "agent_trips", "err_sum", "err_n", "by_goal")
+_RUN_FIELDS = ("success", "off_path", "fall", "timeout", "map_trips", "agent_trips", "err_n", "by_goal")
+
+
+def _same_run(a: dict, b: dict) -> bool:
+    """Whether two rows of one run key hold the same run: equal counts, path error sums equal to rounding."""
+    return (all(a.get(k) == b.get(k) for k in _RUN_FIELDS)
+            and abs(a["err_sum"] - b["err_sum"]) <= 1e-6 * max(1.0, abs(a["err_sum"])))
 
 
 def read_rows(paths: str | list[str]) -> list[dict]:
     """The rows of one or more result files. A run (configuration, crowd model and settings, seed, bodies,
-    scene) found in several files is kept once if its counts agree (the machines repeat a run trip for trip),
-    and refused if they differ: two different runs under one name would be pooled."""
+    scene) found in several files is kept once if its counts agree (one kind of CPU repeats a run trip for trip),
+    and refused if they differ (another kind of CPU, or another setting under one name): pooling both would count
+    that seed and scene twice."""
     rows: list[dict] = []
     seen: dict[tuple, tuple[str, dict]] = {}
     for path in [paths] if isinstance(paths, str) else paths:
@@ -217,8 +224,7 @@ def read_rows(paths: str | list[str]) -> list[dict]:
             key = (*_group(r), r["scene"])
             if key in seen:
                 first, other = seen[key]
-                if any(r.get(k) != other.get(k) and not (k == "err_sum" and abs(r[k] - other[k]) < 1e-6 * max(1.0, abs(r[k])))
-                       for k in _RUN_FIELDS):
+                if not _same_run(r, other):
                     raise ValueError(f"run {key[0]!r} seed {key[3]} {key[5]} is in {first} and {path} with different "
                                      "counts: not the same run")
                 continue
@@ -243,7 +249,8 @@ def summary(path: str | list[str], by_scene: bool = False, pooled: bool = False,
     if seeds is not None:
         missing = sorted(set(seeds) - {r["seed"] for r in rows})
         if missing:
-            raise ValueError(f"{path if isinstance(path, str) else ', '.join(path)} holds no rows of seed(s) {', '.join(map(str, missing))}")
+            where = path if isinstance(path, str) else ", ".join(path)
+            raise ValueError(f"{where} holds no rows of seed(s) {', '.join(map(str, missing))}")
         rows = [r for r in rows if r["seed"] in seeds]
     keys = ("success", "off_path", "fall", "timeout")
     lines = ["| configuration | trips | success | off path | fall | timeout | map contact | agent contact | path error (m) |",
