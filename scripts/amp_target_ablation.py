@@ -167,9 +167,12 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
                            human_model=bodies)
     row.pop("poses")
     row.pop("walk_kin")  # speed / acceleration / jerk samples: navzoo eval crowd reports them
+    from navzoo.benchmark.runner import cpu_model
+
     return {"config": cfg["name"],
             **{k: cfg[k] for k in (*_PARAMS, "fallen_obstacles")},
-            "crowd": crowd, "bodies": bodies, "diffusion_settings": diffusion_settings, "seed": seed, **row}
+            "crowd": crowd, "bodies": bodies, "diffusion_settings": diffusion_settings, "seed": seed, **row,
+            "cpu": cpu_model()}
 
 
 _PARAMS = ("plan_margin", "wall_margin", "lookahead", "turn_rate", "env_flags", "trim", "policy", "accel", "graded",
@@ -225,8 +228,11 @@ def read_rows(paths: str | list[str]) -> list[dict]:
             if key in seen:
                 first, other = seen[key]
                 if not _same_run(r, other):
+                    cpus = {r.get("cpu"), other.get("cpu")}
+                    why = (f" (run on different CPUs: {' and '.join(map(str, cpus))})" if len(cpus) == 2 and None not in cpus
+                           else "")
                     raise ValueError(f"run {key[0]!r} seed {key[3]} {key[5]} is in {first} and {path} with different "
-                                     "counts: not the same run")
+                                     f"counts: not the same run{why}")
                 continue
             seen[key] = (path, r)
             rows.append(r)

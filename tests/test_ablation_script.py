@@ -221,6 +221,11 @@ def test_a_summary_of_several_files_counts_a_repeated_run_once_and_refuses_a_dif
     clash.write_text(json.dumps(_row(cfg, "lobby", 0, success=4)) + "\n")
     with pytest.raises(ValueError, match=r"seed 0 lobby is in .*a\.jsonl and .*c\.jsonl with different counts"):
         ablation.summary([str(first), str(clash)])
+    # rows that record their CPU say so when two of them differ
+    first.write_text(json.dumps(_row(cfg, "lobby", 0, success=3, cpu="Intel Xeon")) + "\n")
+    clash.write_text(json.dumps(_row(cfg, "lobby", 0, success=4, cpu="AMD EPYC")) + "\n")
+    with pytest.raises(ValueError, match=r"not the same run \(run on different CPUs: (Intel Xeon and AMD EPYC|AMD EPYC and Intel Xeon)\)"):
+        ablation.summary([str(first), str(clash)])
     with pytest.raises(SystemExit):
         ablation.main(["--summary", str(first), str(tmp_path / "missing.jsonl")])
     assert "missing.jsonl" in capsys.readouterr().err

@@ -970,18 +970,23 @@ def _write_json(path: Path, obj: Any) -> None:
     os.replace(tmp, path)
 
 
-def machine_info() -> dict[str, Any]:
-    """CPU model, cores, load average, OS, Python, navzoo version and git commit (when in a checkout)."""
-    import navzoo
-
+def cpu_model() -> str:
+    """The CPU's model name (``/proc/cpuinfo``; the platform's processor or machine elsewhere). Runs with physics
+    pedestrians or a diffusion crowd repeat exactly only on one kind of CPU, so result rows record it."""
     cpu = platform.processor() or platform.machine()
     with contextlib.suppress(OSError):
         for line in open("/proc/cpuinfo", encoding="utf-8"):
             if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
+                return line.split(":", 1)[1].strip()
+    return cpu
+
+
+def machine_info() -> dict[str, Any]:
+    """CPU model, cores, load average, OS, Python, navzoo version and git commit (when in a checkout)."""
+    import navzoo
+
     info: dict[str, Any] = {
-        "cpu": cpu,
+        "cpu": cpu_model(),
         "cores": os.cpu_count(),
         "platform": platform.platform(),
         "python": platform.python_version(),

@@ -21,17 +21,11 @@ from navzoo.envs.registry import make_raw
 
 
 def _machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
     import os
 
-    return f"{cpu}, {os.cpu_count()} logical CPUs, Python {platform.python_version()}, pybullet {p.getAPIVersion()}"
+    from navzoo.benchmark.runner import cpu_model
+
+    return f"{cpu_model()}, {os.cpu_count()} logical CPUs, Python {platform.python_version()}, pybullet {p.getAPIVersion()}"
 
 
 def measure(n_humans: int, steps: int = 200, repeats: int = 3, scene: str = "station", crowd: str = "sfm",
