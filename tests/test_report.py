@@ -193,3 +193,11 @@ def test_tables_show_fallen_people_only_for_physics_crowds():
     assert head.endswith("| people fallen |")
     assert row.split("|")[-2].strip().startswith("1.50 ± ")  # the mean per episode, with its interval
     assert "<th>people fallen</th>" in _html_table(physics, [("method", "method")])
+
+
+def test_the_cpu_model_names_the_machine_and_machine_info_uses_it():
+    from navzoo.benchmark.runner import cpu_model, machine_info
+
+    cpu = cpu_model()
+    assert isinstance(cpu, str) and cpu.strip()
+    assert machine_info()["cpu"] == cpu
