@@ -212,6 +212,20 @@ def test_cost_timings_run_small():
     assert "cpu replan (ms)" in md and "Env step (lobby" in md
 
 
+def test_cost_only_runs_the_timings_alone_and_writes_them(tmp_path, monkeypatch, capsys):
+    from navzoo.cli import main
+
+    monkeypatch.setattr(ce, "evaluate", lambda *a, **k: pytest.fail("--cost-only ran the evaluation"))
+    monkeypatch.setattr(ce, "cost", lambda quick: {"replan_cpu": [{"pedestrians": 1, "replan_ms": 5.0}], "quick": quick})
+    out = tmp_path / "cost.json"
+    assert main(["eval", "crowd", "--cost-only", "--quick", "--json", "--out", str(out)]) == 0
+    saved = json.loads(out.read_text())
+    assert saved["cost"] == {"replan_cpu": [{"pedestrians": 1, "replan_ms": 5.0}], "quick": True} and saved["machine"]
+    assert json.loads(capsys.readouterr().out) == saved
+    with pytest.raises(SystemExit, match="--cost-only and --no-cost"):
+        main(["eval", "crowd", "--cost-only", "--no-cost"])
+
+
 def test_reliability_rows_over_several_seeds_resume_their_scene_runs(tmp_path, monkeypatch):
     kw = dict(rows=["sfm+kinematic"], scenes=["station"], seconds=10.0, people=[3])
     whole = ce.reliability(seeds=[0, 1], **kw)["sfm+kinematic"]

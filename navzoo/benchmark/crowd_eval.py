@@ -789,6 +789,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rows", type=_names, default=None,
                         help=f"reliability rows to run, comma-separated, of {', '.join(RELIABILITY_ROWS)} (default all)")
     parser.add_argument("--no-cost", action="store_true", help="skip the replan and step timings")
+    parser.add_argument("--cost-only", action="store_true",
+                        help="only the replan and step timings (seconds, no data needed), then exit")
     parser.add_argument("--data", default=None, help="ETH/UCY folder (default: the shared data folder)")
     parser.add_argument("--policy", default=None, help="exported AMP policy folder (default: the shipped one)")
     parser.add_argument("--markdown", default=None, metavar="RESULT_JSON",
@@ -798,6 +800,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run_cli(args: argparse.Namespace) -> int:
     if args.markdown:
         print(markdown(json.loads(Path(args.markdown).read_text())))
+        return 0
+    if args.cost_only:
+        if args.no_cost:
+            raise SystemExit("navzoo eval crowd: --cost-only and --no-cost exclude each other")
+        result = {"quick": args.quick, "machine": _machine(), "cost": cost(args.quick)}
+        if args.out:
+            Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.out).write_text(json.dumps(result, default=_json_default) + "\n")
+        print(json.dumps(result, indent=None if args.json else 2, default=_json_default))
         return 0
     seeds = pedestrians.seeds_option("navzoo eval crowd", args.seed, args.seeds)
     result = evaluate(args.quick, args.seconds, args.crowds, amp=not args.no_amp, with_cost=not args.no_cost,
