@@ -646,8 +646,7 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
         result["partial"] = partial
         result["wall_s"] = round(time.time() - t0, 1)
         if out:
-            Path(out).parent.mkdir(parents=True, exist_ok=True)
-            Path(out).write_text(json.dumps(result, default=_json_default) + "\n")
+            _write_result(out, result)
 
     counts = [people] * len(scenes) if people is not None else None
     real = real_data(data_dir)
@@ -670,6 +669,12 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
         for name in rows:
             pedestrians.remove_resume_files(row_resume_file(out, name))
     return result
+
+
+def _write_result(out: str | Path, result: dict[str, Any]) -> None:
+    """Write a result (``--out``) as one line of JSON, making its folder."""
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    Path(out).write_text(json.dumps(result, default=_json_default) + "\n")
 
 
 def _json_default(v: Any) -> Any:
@@ -806,8 +811,7 @@ def run_cli(args: argparse.Namespace) -> int:
             raise SystemExit("navzoo eval crowd: --cost-only and --no-cost exclude each other")
         result = {"quick": args.quick, "machine": _machine(), "cost": cost(args.quick)}
         if args.out:
-            Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-            Path(args.out).write_text(json.dumps(result, default=_json_default) + "\n")
+            _write_result(args.out, result)
         print(json.dumps(result, indent=None if args.json else 2, default=_json_default))
         return 0
     seeds = pedestrians.seeds_option("navzoo eval crowd", args.seed, args.seeds)
