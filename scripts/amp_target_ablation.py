@@ -31,7 +31,9 @@ upper-case constants of ``navzoo.envs.amp_humans``, ``NAME=VALUE`` joined by ``+
 ``--crowd`` picks the crowd model that makes the targets (default ``sfm``), and
 ``--diffusion-set K=V,...`` changes the diffusion crowd's settings in every run (names as in
 ``navzoo eval crowd-matched --diffusion-set``).
-``--scenes`` picks some of the 8 scenes (each keeps its people count). ``--bodies kinematic`` walks the crowd
+``--scenes`` picks some of the 8 scenes (each keeps its people count), or names any library scene with its people
+count as ``SCENE:N``, or ``heldout`` for :data:`navzoo.benchmark.pedestrians.HELDOUT_SCENES` (10 scenes no setting
+was chosen on, 3-15 people). ``--bodies kinematic`` walks the crowd
 model with kinematic bodies instead (the AMP-only fields then change nothing; for NavConfig fields that
 apply to both, such as ``human_replan_blocked=all``).
 
@@ -179,6 +181,55 @@ _PARAMS = ("plan_margin", "wall_margin", "lookahead", "turn_rate", "env_flags", 
            "skip", "keep", "dcap", "scap", "lag", "set")
 
 
+def parse_scenes(text: str | None) -> dict[str, int]:
+    """Scene -> people of ``--scenes``: the protocol's 8 scenes (``None``), names among them (each keeps its people
+    count), ``SCENE:N`` for any library scene with N people, and ``heldout`` for
+    :data:`~navzoo.benchmark.pedestrians.HELDOUT_SCENES`. Unknown scenes and bad counts are refused."""
+    from navzoo.benchmark.pedestrians import HELDOUT_SCENES, SCENES, people_per_scene
+    from navzoo.world.library import get_scene
+
+    protocol = dict(zip(SCENES, people_per_scene(len(SCENES)), strict=True))
+    if text is None:
+        return protocol
+    out: dict[str, int] = {}
+    for item in (x.strip() for x in text.split(",")):
+        if item == "heldout":
+            pairs = list(HELDOUT_SCENES)
+        elif ":" in item:
+            name, _, count = item.partition(":")
+            try:
+                n = int(count)
+            except ValueError:
+                raise ValueError(f"--scenes: people count of {name!r} must be an integer, got {count!r}") from None
+            if n < 1:
+                raise ValueError(f"--scenes: people count of {name!r} must be at least 1, got {n}")
+            get_scene(name)  # ValueError naming the valid scenes
+            pairs = [(name, n)]
+        elif item in protocol:
+            pairs = [(item, protocol[item])]
+        else:
+            raise ValueError(f"--scenes: {item!r} is not one of the protocol's scenes {list(SCENES)}; give another "
+                             f"library scene with its people count as {item}:N, or 'heldout'")
+        for name, n in pairs:
+            if out.get(name, n) != n:
+                raise ValueError(f"--scenes: {name!r} given with {out[name]} and {n} people")
+            out[name] = n
+    if not out:
+        raise ValueError("--scenes: no scenes given")
+    return out
+
+
+def check_people(rows: list[dict], configs: list[dict], people: dict[str, int]) -> None:
+    """Refuse a run whose scene is in the result file, for one of these configurations, with another people count:
+    the resume key does not hold the count, so the new runs would be skipped or mixed with the old ones."""
+    names = {c["name"] for c in configs}
+    for r in rows:
+        n = people.get(r["scene"])
+        if r["config"] in names and n is not None and r.get("pedestrians", n) != n:
+            raise ValueError(f"{r['scene']!r} is in the result file with {r['pedestrians']} people for configuration "
+                             f"{r['config']!r}, asked for {n}; give another --out")
+
+
 def _group(row: dict) -> tuple:
     """What a result row is a sample of: configuration, crowd model and its settings, seed, bodies. Rows
     written before the crowd (the bodies) was recorded were social-force runs (AMP bodies)."""
@@ -302,7 +353,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--configs", default="before:0.1:0.1:0,now:0.1:0:4")
     ap.add_argument("--seconds", type=float, default=200.0)
     ap.add_argument("--seeds", default="0")
-    ap.add_argument("--scenes", default=None, help="comma-separated subset of the 8 scenes (default: all)")
+    ap.add_argument("--scenes", default=None,
+                    help="comma-separated: some of the 8 scenes, SCENE:N for any library scene with N people, or "
+                         "'heldout' (default: the 8)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--crowd", default="sfm", choices=("sfm", "orca", "diffusion"),
                     help="crowd model that makes the target trajectories (default sfm)")
@@ -325,17 +378,15 @@ def main(argv: list[str] | None = None) -> int:
         except (ValueError, OSError) as e:
             ap.error(str(e))
         return 0
-    from navzoo.benchmark.pedestrians import SCENES, people_per_scene
-
     configs = [parse_config(c) for c in args.configs.split(",")]
     seeds = [int(s) for s in args.seeds.split(",")]
     out = Path(args.out)
     rows = [json.loads(line) for line in out.read_text().splitlines() if line.strip()] if out.is_file() else []
-    people = dict(zip(SCENES, people_per_scene(len(SCENES)), strict=True))
-    scenes = SCENES if args.scenes is None else tuple(args.scenes.split(","))
-    unknown = sorted(set(scenes) - set(SCENES))
-    if unknown:
-        ap.error(f"unknown scenes {unknown}; choose from {list(SCENES)}")
+    try:
+        people = parse_scenes(args.scenes)
+    except ValueError as exc:
+        ap.error(str(exc))
+    scenes = tuple(people)
     from navzoo.benchmark.matched_realism import _settings, check_diffusion_settings
 
     try:
@@ -344,6 +395,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(str(exc))
     try:
         done = done_runs(rows, configs)
+        check_people(rows, configs, people)
     except ValueError as exc:
         ap.error(str(exc))
     settings_key = json.dumps(diffusion_settings or {}, sort_keys=True)

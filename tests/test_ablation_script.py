@@ -229,3 +229,49 @@ def test_a_summary_of_several_files_counts_a_repeated_run_once_and_refuses_a_dif
     with pytest.raises(SystemExit):
         ablation.main(["--summary", str(first), str(tmp_path / "missing.jsonl")])
     assert "missing.jsonl" in capsys.readouterr().err
+
+
+def test_scenes_outside_the_protocol_need_a_people_count():
+    from navzoo.benchmark.pedestrians import HELDOUT_SCENES, SCENES
+
+    assert list(ablation.parse_scenes(None)) == list(SCENES)
+    assert ablation.parse_scenes("lobby,home") == {"lobby": 15, "home": 5}  # the protocol's own counts
+    assert ablation.parse_scenes("bottleneck:7,lobby:4") == {"bottleneck": 7, "lobby": 4}
+    assert ablation.parse_scenes("heldout") == dict(HELDOUT_SCENES)
+    with pytest.raises(ValueError, match="'bottleneck'.*bottleneck:N"):
+        ablation.parse_scenes("bottleneck")
+    with pytest.raises(ValueError, match="unknown scene 'atlantis'"):
+        ablation.parse_scenes("atlantis:4")
+    with pytest.raises(ValueError, match="integer, got 'x'"):
+        ablation.parse_scenes("bottleneck:x")
+    with pytest.raises(ValueError, match="at least 1"):
+        ablation.parse_scenes("bottleneck:0")
+    with pytest.raises(ValueError, match="'bottleneck' given with 7 and 9"):
+        ablation.parse_scenes("heldout,bottleneck:9")
+
+
+def test_held_out_scenes_are_outside_everything_tuned_on():
+    from navzoo.benchmark.pedestrians import HELDOUT_SCENES, SCENES, people_per_scene
+    from navzoo.world.library import list_scenes
+
+    names = [s for s, _ in HELDOUT_SCENES]
+    assert set(names) <= set(list_scenes()) and not set(names) & set(SCENES)
+    # the scenes of the AMP controller's scene training (runs 26-35, training/amp_scenes and training/amp_stance_scenes)
+    scene_training = {"apartment", "kitchen", "studio_flat", "cafe", "office_floor", "office_open", "hospital_corridor",
+                      "school_corridor", "campus_plaza", "waiting_room", "convenience_store", "shopping_mall",
+                      "airport_gate", "train_platform", "two_doors", "x_junction"}
+    assert not set(names) & scene_training
+    assert [n for _, n in HELDOUT_SCENES] == people_per_scene(len(HELDOUT_SCENES))
+
+
+def test_a_scene_rerun_with_another_people_count_is_refused(tmp_path):
+    cfg = ablation.parse_config("c:0.1:0.1:4:2.0:0")
+    out = tmp_path / "rows.jsonl"
+    out.write_text(json.dumps(_row(cfg, "bottleneck", 0, pedestrians=7)) + "\n")
+    ablation.check_people([_row(cfg, "bottleneck", 0, pedestrians=7)], [cfg], {"bottleneck": 7})
+    with pytest.raises(ValueError, match="'bottleneck' is in the result file with 7 people.*asked for 9"):
+        ablation.check_people([_row(cfg, "bottleneck", 0, pedestrians=7)], [cfg], {"bottleneck": 9})
+    other = ablation.parse_config("d:0.1:0.1:4:2.0:0")
+    ablation.check_people([_row(cfg, "bottleneck", 0, pedestrians=7)], [other], {"bottleneck": 9})
+    with pytest.raises(SystemExit):
+        ablation.main(["--configs", "c:0.1:0.1:4:2.0:0", "--scenes", "bottleneck:9", "--out", str(out)])

@@ -42,6 +42,14 @@ from navzoo.benchmark import realism
 from navzoo.envs.nav_env import _path_length
 
 SCENES = ("station", "home", "grocery", "circle_crossing", "square_crossing", "corridor", "doorway", "lobby")
+#: Library scenes held out from everything the following protocol's figures were tuned or trained on: none is one
+#: of :data:`SCENES` (where every target setting was chosen) or one of the 16 scenes of the AMP controller's scene
+#: training. The diffusion model's simulated training windows do come from nine of them (60 s of social-force and
+#: ORCA crowds each; ``museum_hall`` was its validation scene). People: 3-15 as :func:`people_per_scene` spreads
+#: them, given in order of free floor area (the narrow L corridor 3, the parking garage 15).
+HELDOUT_SCENES = (("l_corridor", 3), ("t_junction", 4), ("cluttered_room", 6), ("bottleneck", 7), ("lecture_hall", 8),
+                  ("library_stacks", 10), ("office_cubicles", 11), ("museum_hall", 12), ("warehouse_aisles", 14),
+                  ("parking_garage", 15))
 DT = 1.0 / 30.0
 
 
