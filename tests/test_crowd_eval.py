@@ -150,6 +150,36 @@ def test_bad_arguments_are_clear(monkeypatch):
         ce.evaluate(rows=["orca+amp"], scenes=["lobby"], seconds=1.0)
 
 
+def test_heldout_scenes_run_with_their_own_people_counts(monkeypatch):
+    """``--scenes heldout`` runs the ten held-out scenes with the people of HELDOUT_SCENES, in both parts."""
+    seen = {}
+
+    def fake_realism(crowds, scenes, seconds, seed, workers, counts, *a, **k):
+        seen["realism"] = (tuple(scenes), counts)
+        return {}
+
+    def fake_following(scenes, seconds, seed, policy_dir, **kw):
+        seen["following"] = (tuple(scenes), kw["people"])
+        return {"success_rate": 0.5, "fall_rate": 0.0, "trips": 2}, None
+
+    monkeypatch.setattr(ce, "realism", fake_realism)
+    monkeypatch.setattr(ce, "real_data", lambda *a, **k: ({}, {}))
+    monkeypatch.setattr(ce.pedestrians, "following", fake_following)
+    args = ce.argparse.ArgumentParser()
+    ce.add_arguments(args)
+    parsed = args.parse_args(["--scenes", "heldout"])
+    ce.evaluate(scenes=parsed.scenes, seconds=1.0, rows=["sfm+kinematic"], with_cost=False)
+    names = tuple(name for name, _ in ce.pedestrians.HELDOUT_SCENES)
+    counts = [n for _, n in ce.pedestrians.HELDOUT_SCENES]
+    assert seen["realism"] == (names, counts)
+    assert seen["following"] == (names, counts)
+    assert counts != [3] * len(counts) and len(names) == 10
+    # mixed with other names it expands in place; the people are then spread over all of them
+    assert ce._check_scenes(["lobby", "heldout"]) == ("lobby", *names)
+    with pytest.raises(ValueError, match="unknown scene"):
+        ce._check_scenes(["held_out"])
+
+
 def test_each_reliability_row_is_saved_as_it_finishes(tmp_path, monkeypatch):
     """A long run stopped after some rows keeps them in --out (only the chosen rows run)."""
     calls = []

@@ -115,6 +115,8 @@ PAPER_RELIABILITY: dict[str, dict[str, float]] = {
 }
 REALISM_DT = 0.1  # s, the kinematic crowds' control period in the realism runs (NavConfig's default)
 QUICK_SCENES = ("lobby", "corridor")
+#: ``--scenes heldout``: the ten library scenes no setting of the following protocol was chosen on.
+HELDOUT = "heldout"
 QUICK_SECONDS = 20.0
 
 
@@ -352,9 +354,12 @@ def _check_crowds(crowds: Sequence[str]) -> tuple[str, ...]:
 
 
 def _check_scenes(scenes: Sequence[str]) -> tuple[str, ...]:
+    """Library scene names; ``heldout`` stands for the scenes of :data:`navzoo.benchmark.pedestrians.HELDOUT_SCENES`
+    (in their order, so that the 3-15 people spread over them are their own counts)."""
     from navzoo.world.library import list_scenes
 
-    scenes = tuple(scenes)
+    held = [name for name, _ in pedestrians.HELDOUT_SCENES]
+    scenes = tuple(s for item in scenes for s in (held if item == HELDOUT else [item]))
     known = list_scenes()
     bad = [s for s in scenes if s not in known]
     if bad or not scenes:
@@ -648,7 +653,12 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
         if out:
             _write_result(out, result)
 
-    counts = [people] * len(scenes) if people is not None else None
+    if people is not None:
+        counts = [people] * len(scenes)
+    elif scenes == tuple(name for name, _ in pedestrians.HELDOUT_SCENES):
+        counts = [n for _, n in pedestrians.HELDOUT_SCENES]
+    else:
+        counts = None
     real = real_data(data_dir)
     result["realism"] = realism(crowds, scenes, seconds, seed, workers, counts, data_dir, real=real)
     save(True)
@@ -783,7 +793,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"crowd models of the realism part, comma-separated, of {', '.join(CROWDS)} "
                         f"(default {','.join(DEFAULT_CROWDS)})")
     parser.add_argument("--scenes", type=_names, default=None,
-                        help="scenes, comma-separated (default the 8 of the pedestrian evaluation; quick: lobby,corridor)")
+                        help="scenes, comma-separated (default the 8 of the pedestrian evaluation; quick: lobby,corridor); "
+                             "'heldout': the 10 library scenes no setting was chosen on, with their 3-15 people")
     parser.add_argument("--people", type=int, default=None,
                         help="pedestrians in every scene (default 3-15 spread over the scenes)")
     parser.add_argument("--seed", type=int, default=None, help="seed of the scenes (default 0)")
