@@ -315,3 +315,13 @@ def test_a_realism_scene_runs_on_one_torch_thread_and_gives_the_callers_setting_
     finally:
         torch.set_num_threads(before)
     assert seen == [1] and row["pedestrians"] == 2
+
+
+def test_a_realism_scenes_overlap_threshold_is_the_one_given():
+    """``crowd_scene(overlap_m=...)`` counts pairs closer than that distance (it was accepted and ignored once)."""
+    wide = ce.crowd_scene("sfm", "corridor", 2, seconds=1.0, overlap_m=1e3)
+    default = ce.crowd_scene("sfm", "corridor", 2, seconds=1.0)
+    hits, pairs = wide["counts"]["overlap"]
+    assert pairs > 0 and hits == pairs  # every pair is within a kilometre
+    assert default["counts"]["overlap"][0] < pairs  # two people starting apart do not all overlap at 0.4 m
+    assert default["counts"]["env_radius"] == wide["counts"]["env_radius"]

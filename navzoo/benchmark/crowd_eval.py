@@ -336,8 +336,8 @@ def _default_radius() -> float:
     return float(NavConfig.human_radius)
 
 
-def _thresholds(env_threshold: float) -> dict[str, float]:
-    return {"overlap": OVERLAP_M, "env_radius": float(env_threshold)}
+def _thresholds(env_threshold: float, overlap_m: float = OVERLAP_M) -> dict[str, float]:
+    return {"overlap": float(overlap_m), "env_radius": float(env_threshold)}
 
 
 def _suffix(name: str) -> str:
@@ -379,11 +379,11 @@ def crowd_scene(crowd: str, scene: str, n: int, seconds: float, seed: int = 0, d
     from navzoo.torch_threads import one_torch_thread
 
     with one_torch_thread():
-        return _crowd_scene(crowd, scene, n, seconds, seed, dt, step, max_jump, min_start_speed)
+        return _crowd_scene(crowd, scene, n, seconds, seed, dt, step, max_jump, min_start_speed, overlap_m)
 
 
 def _crowd_scene(crowd: str, scene: str, n: int, seconds: float, seed: int, dt: float, step: float,
-                 max_jump: float, min_start_speed: float) -> dict[str, Any]:
+                 max_jump: float, min_start_speed: float, overlap_m: float = OVERLAP_M) -> dict[str, Any]:
     from navzoo.agents.crowd import CrowdPolicy
     from navzoo.envs.nav_env import NavEnv
     from navzoo.envs.wrappers import FrozenAgents
@@ -402,7 +402,7 @@ def _crowd_scene(crowd: str, scene: str, n: int, seconds: float, seed: int, dt: 
     pos = np.asarray(positions)  # (T + 1, n, 2)
     t = np.arange(len(pos)) * dt
     kin = track_kinematics([(t, pos[:, j]) for j in range(n)], step, max_jump, min_start_speed)
-    counts = {name: collision_share(pos, thr) for name, thr in _thresholds(2 * float(radius.max())).items()}
+    counts = {name: collision_share(pos, thr) for name, thr in _thresholds(2 * float(radius.max()), overlap_m).items()}
     wall = time.time() - t0
     line = (f"crowd realism {crowd} {scene} ({n} people, {seconds:.0f} s): mean speed "
             f"{kin['speed'].mean() if kin['speed'].size else float('nan'):.2f} m/s, collision share "
