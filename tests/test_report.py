@@ -201,3 +201,9 @@ def test_the_cpu_model_names_the_machine_and_machine_info_uses_it():
     cpu = cpu_model()
     assert isinstance(cpu, str) and cpu.strip()
     assert machine_info()["cpu"] == cpu
+    # the training and study records name the same CPU (once they recorded only platform.processor(), often empty)
+    from navzoo.agents import scaling_study
+    from navzoo.agents.amp import stage0
+
+    assert scaling_study.machine_info()["cpu"] == cpu
+    assert stage0._machine()["cpu"] == cpu

@@ -23,6 +23,7 @@ import numpy as np
 
 from navzoo.agents.orca import OrcaParams, orca_velocities
 from navzoo.agents.sfm import SocialForceParams, social_force_velocities
+from navzoo.machine import cpu_model
 
 HALF = 7.0
 RADIUS = 0.3
@@ -200,7 +201,7 @@ def main(argv: list[str] | None = None) -> None:
         print("\n".join(behaviour()))
         return
     print(
-        f"python {platform.python_version()}, numpy {np.__version__}, {platform.processor() or platform.machine()}"
+        f"python {platform.python_version()}, numpy {np.__version__}, {cpu_model()}"
     )
     print(f"{'model':<6} {'N':>4} {'walls':>5} {'median ms':>10} {'mean ms':>9}")
     for row in run(args.agents, args.segments, args.calls, args.seed):

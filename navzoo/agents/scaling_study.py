@@ -189,8 +189,11 @@ def _effective_workers(workers: int | None, n: int) -> int:
 
 def machine_info() -> dict[str, Any]:
     """What the numbers depend on: cores, platform, torch, CUDA device, load average now."""
+    from navzoo.machine import cpu_model
+
     info: dict[str, Any] = {
-        "cpu_count": os.cpu_count(), "platform": platform.platform(), "processor": platform.processor() or None,
+        "cpu": cpu_model(), "cpu_count": os.cpu_count(), "platform": platform.platform(),
+        "processor": platform.processor() or None,
         "python": platform.python_version(), "torch": torch.__version__, "torch_threads": torch.get_num_threads(),
         "cuda_device": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
     }

@@ -54,6 +54,8 @@ from typing import Any
 
 import numpy as np
 
+from navzoo.machine import cpu_model  # noqa: F401  (also imported from here by scripts)
+
 __all__ = [
     "BenchmarkSpec",
     "Cell",
@@ -968,17 +970,6 @@ def _write_json(path: Path, obj: Any) -> None:
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(json.dumps(_json_safe(obj), indent=2, allow_nan=False) + "\n", encoding="utf-8")
     os.replace(tmp, path)
-
-
-def cpu_model() -> str:
-    """The CPU's model name (``/proc/cpuinfo``; the platform's processor or machine elsewhere). Runs with physics
-    pedestrians or a diffusion crowd repeat exactly only on one kind of CPU, so result rows record it."""
-    cpu = platform.processor() or platform.machine()
-    with contextlib.suppress(OSError):
-        for line in open("/proc/cpuinfo", encoding="utf-8"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    return cpu
 
 
 def machine_info() -> dict[str, Any]:

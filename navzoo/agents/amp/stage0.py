@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import time
 
 import numpy as np
@@ -230,16 +229,9 @@ def throughput(ref: ReferenceMotion, sizes: tuple[int, ...] = (1, 4, 16), second
 
 
 def _machine() -> dict:
-    cpu = platform.processor() or ""
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    return {"nproc": os.cpu_count(), "cpu": cpu, "pybullet": p.getAPIVersion()}
+    from navzoo.machine import cpu_model
+
+    return {"nproc": os.cpu_count(), "cpu": cpu_model(), "pybullet": p.getAPIVersion()}
 
 
 def run_stage0(
