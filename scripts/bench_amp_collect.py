@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import time
 
 import numpy as np
@@ -25,6 +24,7 @@ def bench(workers: int, envs_per_worker: int, steps: int, warmup: int, door_prob
     from navzoo.agents.amp.path_env import PathTaskConfig
     from navzoo.agents.amp.train import grounded_locomotion_reference
     from navzoo.agents.amp.vec import SubprocAmpVecEnv
+    from navzoo.machine import cpu_model
 
     policy = load_policy("policies/amp_pedestrian")
     task = PathTaskConfig(stage=3, pd_mode="motor", obstacle_obs=True, boxes_per_patch=4, pair_patches=True,
@@ -61,7 +61,7 @@ def bench(workers: int, envs_per_worker: int, steps: int, warmup: int, door_prob
             "reference_windows": n_ref, "reference_ms_main": ref_ms["main"], "reference_ms_sharded": ref_ms["sharded"],
             "door_prob": door_prob, "replan_sync": replan_sync, "steps": steps, "warmup": warmup,
             "threads_env": {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")},
-            "cpus": os.cpu_count(), "machine": platform.processor() or platform.machine()}
+            "cpus": os.cpu_count(), "machine": cpu_model()}
 
 
 def main() -> None:

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import time
 
 import numpy as np
@@ -45,7 +44,9 @@ def main() -> None:
     base = env.unwrapped
     env.reset(seed=0)
     rng = np.random.default_rng(0)
-    cpu = platform.processor() or platform.machine()
+    from navzoo.machine import cpu_model
+
+    cpu = cpu_model()
     print(
         f"{args.env}: {base.n_robots} robot(s), {base.n_humans} people; {cpu}, {os.cpu_count()} CPUs; {renderer}"
     )

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
+import os
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -195,7 +195,9 @@ def evaluate(scenes: tuple[str, ...] = EVAL_SCENES, steps: int = 600, seed: int 
                         for p in parts}
     out["steps_per_scene"] = steps
     out["wall_s"] = round(time.perf_counter() - t0, 1)
-    out["machine"] = f"{platform.machine()} {platform.processor() or ''} {__import__('os').cpu_count()} cores".strip()
+    from navzoo.machine import cpu_model
+
+    out["machine"] = f"{cpu_model()}, {os.cpu_count()} cores"
     return out
 
 
