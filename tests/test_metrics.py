@@ -671,3 +671,30 @@ def test_episode_summary_keeps_its_original_keys():
     )
     assert ok["thresholds"]["discomfort_m"] == 0.05
     json.loads(json.dumps(s))
+
+
+def test_people_who_appear_are_not_swept_along_their_jump():
+    """The replay crowd keeps absent people far away: with ``present`` the jump into the scene, which crosses the
+    robot here, is no collision and no near pass; without it, it is (the reason ``present`` exists)."""
+    from navzoo.benchmark.metrics import discomfort_stats, min_person_distance, swept_person_collisions
+
+    T = 10
+    robot = np.zeros((T + 1, 2))  # the robot stands at the origin
+    person = np.zeros((T + 1, 1, 2))
+    person[:5, 0] = (-1000.0, 0.0)  # parked far west, then appears 3 m east: the jump crosses the robot
+    person[5:, 0] = (3.0, 0.0)
+    present = np.zeros((T + 1, 1), dtype=bool)
+    present[5:] = True
+    assert swept_person_collisions(robot, person, 0.3, 0.3).any()
+    assert not swept_person_collisions(robot, person, 0.3, 0.3, present=present).any()
+    assert min_person_distance(robot, person, 0.3, 0.3, present=present) == pytest.approx(2.4)
+    assert discomfort_stats(robot, person, 0.3, 0.3, 0.2, present=present)["steps"] == 0
+    # a person who appears on top of the robot is still a collision, at the step they appear
+    person[5:, 0] = (0.2, 0.0)
+    hits = swept_person_collisions(robot, person, 0.3, 0.3, present=present)
+    assert hits[4, 0] and not hits[:4].any()
+    # and a person who leaves (absent at the step's end) has no gap in that step
+    present[8:] = False
+    person[8:, 0] = (-1000.0, 0.0)
+    gaps = M.swept_person_gaps(robot, person, 0.3, 0.3, present)
+    assert np.isinf(gaps[7:, 0]).all() and np.isfinite(gaps[4:7, 0]).all()

@@ -269,6 +269,7 @@ def test_a_pool_that_broke_before_a_submit_is_restarted(tmp_path, monkeypatch):
         (["--scenes", "corridor", "--methods", "orca", "--density", "a,b"], "density"),
         (["--methods", "orca"], "scenes"),
         (["--scenes", "corridor", "--methods", "orca", "--spec", "/nonexistent/spec.yaml"], "spec.yaml"),
+        (["--scenes", "corridor,replay_zara1", "--methods", "orca", "--crowd", "replay"], "['corridor']"),
     ],
 )
 def test_cli_bad_input_exits_2_naming_the_problem(tmp_path, capsys, args, needle):
@@ -358,3 +359,56 @@ def test_an_episode_among_physics_pedestrians_does_not_depend_on_the_episodes_be
 
     reused, fresh_runs = records(tmp_path / "reused"), records(tmp_path / "fresh")
     assert len(reused) == 2 and reused == fresh_runs
+
+
+def test_replay_episodes_play_a_window_of_the_recording_that_every_method_shares():
+    """``--crowd replay``: level "recorded" whatever the counts; each episode another window with people in it,
+    the same for every method of the episode, from the episode's seed."""
+    from navzoo.agents.replay import load_recording
+
+    spec = resolve_spec(scenes="replay_zara1,replay_eth", methods="orca,sfm", crowd="replay,sfm", humans="4",
+                        episodes=6, time_limit=20.0)[0]
+    tasks = build_tasks(spec, "unused")
+    replay = [t for t in tasks if t.cell.crowd == "replay"]
+    assert {t.cell.level for t in replay} == {"recorded"}
+    assert {t.cell.level for t in tasks if t.cell.crowd == "sfm"} == {"n4"}  # counts apply to the simulated crowd
+    for scene in ("replay_zara1", "replay_eth"):
+        rec = load_recording(scene.removeprefix("replay_"))
+        starts = {}
+        for t in (t for t in replay if t.cell.scene == scene):
+            assert t.env_kwargs["crowd_model"] == "replay" and t.env_kwargs["n_humans"] is None
+            starts.setdefault(t.episode, set()).add(t.env_kwargs["replay_start"])
+        assert all(len(v) == 1 for v in starts.values())  # both methods, one window
+        windows = [v.pop() for _, v in sorted(starts.items())]
+        assert len(set(windows)) > 1  # episodes differ
+        for w in windows:
+            assert 0 <= w <= rec.duration - 20.0
+            assert np.any((rec.t0 <= w + 20.0) & (rec.t1() >= w))  # someone walks in the window
+    again = build_tasks(spec, "unused")
+    assert [t.env_kwargs for t in again] == [t.env_kwargs for t in tasks]
+
+
+def test_a_replay_episode_is_benchmarked_without_the_parked_peoples_jumps(tmp_path):
+    """A robot among recorded people: the record names the window and its people; absent people (parked 1 km
+    east) count neither in the distances nor in the trajectory file's people."""
+    spec = resolve_spec(scenes="replay_zara1", methods="orca", crowd="replay", episodes=2, max_steps=60,
+                        save_trajectories=2)[0]
+    run_benchmark(spec, tmp_path / "run", workers=0, progress=False)
+    recs = load_episodes(tmp_path / "run")
+    assert len(recs) == 2
+    for rec in recs:
+        assert rec["crowd"] == "replay" and rec["level"] == "recorded" and rec["n_humans"] >= 1
+        assert rec["people_in_window"] >= rec["n_humans"] and rec["replay_start"] >= 0
+        z = np.load(tmp_path / "run" / "trajectories" / "orca" / "replay_zara1"
+                    / f"replay_recorded_ep{rec['episode']:04d}.npz")
+        present, people, robot = z["human_present"], z["human_pos"], z["robot_pos"]
+        assert present.shape == people.shape[:2] and present.any() and not present.all()
+        from navzoo.benchmark.metrics import min_person_distance
+
+        gaps = np.linalg.norm(people - robot[:, None], axis=-1) - z["robot_radius"] - z["human_radius"]
+        seen = np.where(present, gaps, np.inf).min()
+        assert rec["min_distance_m"] <= seen + 1e-9  # swept gaps are at most the sampled ones
+        # the record's distance is the one over present people (tests/test_metrics.py: why it matters)
+        assert rec["min_distance_m"] == pytest.approx(
+            min_person_distance(robot, people, float(z["robot_radius"]), z["human_radius"], present=present))
+        assert np.all(np.linalg.norm(people[~present], axis=-1) > 900)  # the absent ones are the parked ones

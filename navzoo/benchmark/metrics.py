@@ -196,7 +196,8 @@ def _segment_origin_distance(p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
 
 
 def swept_person_gaps(
-    robot_pos: np.ndarray, human_pos: np.ndarray, robot_radius: float, human_radius: np.ndarray | float
+    robot_pos: np.ndarray, human_pos: np.ndarray, robot_radius: float, human_radius: np.ndarray | float,
+    present: np.ndarray | None = None,
 ) -> np.ndarray:
     """Smallest edge-to-edge robot-person gap within each step, ``(T, H)`` m (CrowdNav's swept test).
 
@@ -204,12 +205,24 @@ def swept_person_gaps(
     along the segment ``r_t - h_t -> r_{t+1} - h_{t+1}``; the gap is that segment's distance to the origin
     minus both radii. It is <= the gaps at both end samples, so fast bodies cannot pass through each other
     unnoticed.
+
+    ``present`` ``(T+1, H)`` bool (replayed people, who appear and leave): a person absent at the end of a step
+    has no gap in it (inf); one who appears during a step is tested where they appear, at the step's end, not
+    along the jump from where they were kept while absent.
     """
     rp = _pos(robot_pos)
     hp = _humans(human_pos, len(rp))
     rel = rp[:, None, :] - hp  # (T+1, H, 2)
-    d = _segment_origin_distance(rel[:-1], rel[1:])
-    return d - robot_radius - _radii(human_radius, hp.shape[1])[None, :]
+    start = rel[:-1]
+    if present is not None:
+        present = np.asarray(present, dtype=bool).reshape(hp.shape[:2])
+        appears = ~present[:-1] & present[1:]
+        start = np.where(appears[..., None], rp[:-1, None, :] - hp[1:], start)  # the robot moves, the person not
+    d = _segment_origin_distance(start, rel[1:])
+    gaps = d - robot_radius - _radii(human_radius, hp.shape[1])[None, :]
+    if present is not None:
+        gaps = np.where(present[1:], gaps, np.inf)
+    return gaps
 
 
 def swept_person_collisions(
@@ -218,9 +231,11 @@ def swept_person_collisions(
     robot_radius: float,
     human_radius: np.ndarray | float,
     tolerance: float = 0.0,
+    present: np.ndarray | None = None,
 ) -> np.ndarray:
-    """``(T, H)`` bool: robot and person overlap at some time during the step (swept gap < -tolerance)."""
-    return swept_person_gaps(robot_pos, human_pos, robot_radius, human_radius) < -tolerance
+    """``(T, H)`` bool: robot and person overlap at some time during the step (swept gap < -tolerance);
+    ``present`` as :func:`swept_person_gaps`."""
+    return swept_person_gaps(robot_pos, human_pos, robot_radius, human_radius, present) < -tolerance
 
 
 def swept_obstacle_collisions(
@@ -478,15 +493,18 @@ def _step_gaps(
     robot_radius: float,
     human_radius: np.ndarray | float,
     swept: bool,
+    present: np.ndarray | None = None,
 ) -> np.ndarray:
-    """(T, H) gap per step: the swept minimum within the step, or the gap at the step's end sample."""
+    """(T, H) gap per step: the swept minimum within the step, or the gap at the step's end sample; ``present``
+    as :func:`swept_person_gaps` (absent people: inf)."""
     if swept:
-        return swept_person_gaps(robot_pos, human_pos, robot_radius, human_radius)
+        return swept_person_gaps(robot_pos, human_pos, robot_radius, human_radius, present)
     rp = _pos(robot_pos)
     hp = _humans(human_pos, len(rp))
-    return person_gaps(rp, hp, robot_radius, _radii(human_radius, hp.shape[1]))[1:].reshape(
-        len(rp) - 1, hp.shape[1]
-    )
+    g = person_gaps(rp, hp, robot_radius, _radii(human_radius, hp.shape[1]))[1:].reshape(len(rp) - 1, hp.shape[1])
+    if present is not None:
+        g = np.where(np.asarray(present, dtype=bool).reshape(len(rp), hp.shape[1])[1:], g, np.inf)
+    return g
 
 
 def min_person_distance(
@@ -495,18 +513,22 @@ def min_person_distance(
     robot_radius: float,
     human_radius: np.ndarray | float,
     swept: bool = True,
+    present: np.ndarray | None = None,
 ) -> float:
     """Minimum edge-to-edge distance to any person over the episode (m); inf without people.
 
     ``swept`` (default): the minimum over each step's linear motion (:func:`swept_person_gaps`), which is
-    also the minimum over all samples; else over the samples only.
+    also the minimum over all samples; else over the samples only. ``present`` ``(T+1, H)``: only people
+    present count (:func:`swept_person_gaps`).
     """
     rp = _pos(robot_pos)
     if not swept or len(rp) < 2:
         hp = _humans(human_pos, len(rp))
         g = person_gaps(rp, hp, robot_radius, _radii(human_radius, hp.shape[1]))
+        if present is not None:
+            g = np.where(np.asarray(present, dtype=bool).reshape(g.shape), g, np.inf)
     else:
-        g = swept_person_gaps(rp, human_pos, robot_radius, human_radius)
+        g = swept_person_gaps(rp, human_pos, robot_radius, human_radius, present)
     return float(g.min()) if g.size else float("inf")
 
 
@@ -517,15 +539,16 @@ def discomfort_stats(
     human_radius: np.ndarray | float,
     threshold: float = 0.2,
     swept: bool = True,
+    present: np.ndarray | None = None,
 ) -> dict[str, float]:
-    """CrowdNav's discomfort of one episode.
+    """CrowdNav's discomfort of one episode (``present``: only people present count, :func:`swept_person_gaps`).
 
     A step is a discomfort step when its smallest robot-person gap (swept within the step, as CrowdNav's
     ``dmin``, or at its end sample with ``swept=False``) is below ``threshold``. Returns ``steps`` (discomfort
     steps), ``total_steps`` (T), ``gap_sum_m`` (sum of those steps' minimum gaps, for pooling),
     ``frequency`` (steps / T) and ``mean_min_gap_m`` (gap_sum / steps, nan without discomfort steps).
     """
-    g = _step_gaps(robot_pos, human_pos, robot_radius, human_radius, swept)
+    g = _step_gaps(robot_pos, human_pos, robot_radius, human_radius, swept, present)
     total = g.shape[0]
     if g.shape[1] == 0 or total == 0:
         gmin = np.full(total, np.inf)
@@ -1109,6 +1132,7 @@ def episode_metrics(
     end_step: int | None = None,
     sfm_params: Any = None,
     thresholds: Thresholds | None = None,
+    human_present: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """Every per-episode metric of one robot, keyed by its METRICS.md name (docs/metrics.md lists them).
 
@@ -1130,6 +1154,9 @@ def episode_metrics(
         end_step: the step the robot was done at (multi-robot episodes record past it): arrays are cut there.
         sfm_params: ``SocialForceParams`` for social work (default parameters).
         thresholds: :class:`Thresholds` (defaults: METRICS.md); reported under ``"thresholds"``.
+        human_present: ``(T+1, H)`` bool, people who are not always there (the replay crowd keeps absent people
+            far outside the scene): the swept gaps (minimum distance, discomfort, the swept collision check) skip
+            absent people and their jumps in and out; the other social metrics see them where they are kept.
     """
     th = thresholds or Thresholds()
     rp = _pos(robot_pos)
@@ -1217,8 +1244,9 @@ def episode_metrics(
         out["path_irregularity"] = nan
 
     # Social
-    out["min_distance_m"] = min_person_distance(rp, hp, robot_radius, hr)
-    disc = discomfort_stats(rp, hp, robot_radius, hr, th.discomfort_m)
+    present = None if human_present is None else np.asarray(human_present, dtype=bool)[: len(rp)]
+    out["min_distance_m"] = min_person_distance(rp, hp, robot_radius, hr, present=present)
+    disc = discomfort_stats(rp, hp, robot_radius, hr, th.discomfort_m, present=present)
     out["discomfort_steps"] = disc["steps"]
     out["total_steps"] = disc["total_steps"]
     out["discomfort_frequency"] = disc["frequency"]
@@ -1267,7 +1295,7 @@ def episode_metrics(
 
     # Consistency checks from the arrays (the env's own tests decide the event).
     out["swept_human_collision"] = bool(
-        swept_person_collisions(rp, hp, robot_radius, hr, th.collision_tolerance_m).any()
+        swept_person_collisions(rp, hp, robot_radius, hr, th.collision_tolerance_m, present).any()
     )
     out["swept_obstacle_collision"] = (
         bool(swept_obstacle_collisions(rp, robot_radius, segments, th.collision_tolerance_m).any())

@@ -4,6 +4,8 @@
 circle-crossing test: the scene, the crowd (5 ORCA people with RVO2's semantics, robot invisible to them),
 the robot (holonomic, radius 0.3 m, v_pref 1 m/s), dt 0.25 s and the 25 s time limit all come from the
 protocol; fields given on the command line or in a spec file override the protocol's defaults.
+``--protocol replay-ethucy`` runs the robot among recorded ETH/UCY people (the replay crowd, SocNavBench's
+setting), one time window of a recording per episode.
 
 The env settings are the registry's CrowdNav presets (:data:`navzoo.envs.registry.SCENARIOS`), so a
 protocol and ``navzoo.make("navzoo/CircleCrossing-v0")`` are the same world.
@@ -16,6 +18,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from navzoo.envs.registry import SCENARIOS
+
+#: The recordings that ship with the package (navzoo/assets/tracks), for the replay protocol.
+REPLAY_RECORDINGS = ("eth", "univ", "zara1", "zara3", "uni_examples")
 
 __all__ = ["PROTOCOLS", "Protocol", "get_protocol", "protocol_names"]
 
@@ -105,6 +110,14 @@ def _make_protocols() -> dict[str, Protocol]:
             env=circle_env,
             methods=("orca-crowdnav",),
             reference=_CROWDNAV_REFERENCE,
+        ),
+        "replay-ethucy": Protocol(
+            name="replay-ethucy",
+            description="recorded ETH/UCY people who do not react to the robot (SocNavBench's setting), the five "
+            "packaged recordings, each episode another window of the recording (robot default, 60 s)",
+            scenes=tuple(f"replay_{name}" for name in REPLAY_RECORDINGS),
+            crowds=("replay",),
+            episodes=20,
         ),
         "crowdnav-square": Protocol(
             name="crowdnav-square",

@@ -55,7 +55,7 @@ SCENE_GROUPS: dict[str, tuple[str, ...]] = {
     "crowdnav": ("circle_crossing", "square_crossing"),
 }
 _GROUP_OF = {scene: group for group, scenes in SCENE_GROUPS.items() for scene in scenes}
-GROUP_ORDER = (*SCENE_GROUPS, "procedural", "other")
+GROUP_ORDER = (*SCENE_GROUPS, "procedural", "recorded", "other")
 
 # Outcome flags of episode_metrics -> their rate names.
 RATE_NAMES = {
@@ -98,11 +98,13 @@ def _columns(rows: Sequence[Mapping[str, Any]]) -> tuple[tuple[str, str, int], .
 
 def scene_group(scene: str) -> str:
     """The group of a scene name: homes, offices, institutions, retail, transport, primitives, crowdnav,
-    procedural (``procedural_*``) or other."""
+    procedural (``procedural_*``), recorded (the ETH/UCY replay scenes ``replay_*``) or other."""
     if scene in _GROUP_OF:
         return _GROUP_OF[scene]
     if scene.startswith("procedural_"):
         return "procedural"
+    if scene.startswith("replay_"):
+        return "recorded"
     return "other"
 
 
@@ -404,11 +406,16 @@ def _plot_overlay(scene: str, trajs: Sequence[tuple[str, Mapping[str, Any]]], co
     fig, ax = plt.subplots(figsize=(7, max(3.0, 7 * h / max(w, 1e-9))))
     plot_scene(sc, ax=ax, show_regions=False, show_waypoints=False, title=title)
     _, first = trajs[0]
-    hp = np.asarray(first["human_pos"])
+    hp = np.asarray(first["human_pos"], dtype=np.float64)
+    present = first.get("human_present")
+    if present is not None and np.shape(present) == hp.shape[:2]:  # replayed people: not where they are parked
+        hp = np.where(np.asarray(present, dtype=bool)[..., None], hp, np.nan)
     for j in range(hp.shape[1] if hp.ndim == 3 else 0):
-        ax.plot(hp[:, j, 0], hp[:, j, 1], color="tab:orange", lw=0.7, alpha=0.45,
+        ax.plot(hp[:, j, 0], hp[:, j, 1], color="tab:gray", lw=0.7, alpha=0.45,
                 label=f"people ({first['method']} episode; ● start)" if j == 0 else None)
-        ax.plot(hp[0, j, 0], hp[0, j, 1], "o", color="tab:orange", ms=3, alpha=0.6)
+        seen = np.flatnonzero(np.isfinite(hp[:, j, 0]))
+        if seen.size:
+            ax.plot(hp[seen[0], j, 0], hp[seen[0], j, 1], "o", color="tab:gray", ms=3, alpha=0.6)
     for method, d in trajs:
         rp = np.asarray(d["robot_pos"])
         ax.plot(rp[:, 0], rp[:, 1], color=colors[method], lw=1.8, label=f"{method}: {d['event']}")
@@ -444,6 +451,7 @@ def _trajectory_overlays(run: Path, records: Sequence[Mapping[str, Any]], method
         for r in recs:
             with np.load(run / "trajectories" / artifact_path(r, ".npz")) as z:
                 trajs.append((r["method"], {k: z[k] for k in ("robot_pos", "human_pos", "start", "goal")}
+                              | {"human_present": z["human_present"] if "human_present" in z.files else None}
                               | {"event": str(z["event"]), "method": r["method"]}))
         name = _safe_name(f"traj_{scene}_{crowd}_{level}_ep{ep:04d}") + ".png"  # rllib:PATH crowds hold slashes
         title = f"{scene}, {crowd}, {level_text(level)}, episode {ep} (seed {recs[0]['seed']})"

@@ -77,14 +77,20 @@ EPISODES_FILE = "episodes.jsonl"
 ERRORS_FILE = "errors.jsonl"
 RUN_FILE = "run.json"
 # "diffusion": the trajectory diffusion crowd (docs/crowd.md), the env's ``diffusion_model`` or the shipped one.
-# "replay" is not among them: it plays recorded tracks in the recordings' own scenes with their own people, where
-# the runner sets scenes and crowd sizes per cell.
-CROWD_MODELS = ("sfm", "orca", "orca_rvo2", "diffusion")
+# "replay": recorded ETH/UCY people (SocNavBench's setting: they do not react to the robot), only in the replay
+# scenes ``replay_<recording>``; every episode plays another time window of the recording, with everyone who walks
+# in it (crowd level "recorded": densities and counts do not apply).
+CROWD_MODELS = ("sfm", "orca", "orca_rvo2", "diffusion", "replay")
+REPLAY_CROWD = "replay"
+REPLAY_LEVEL = "recorded"
+#: Replay windows start on this grid (s) of recording time.
+REPLAY_START_STEP = 1.0
 # A crowd of pedestrians trained with RLlib (navzoo.rl.train, humans: learn): "rllib:PATH" with PATH a
 # training --out folder, a checkpoint or the "human" module folder. They act on flattened observations.
 LEARNED_CROWD_PREFIX = "rllib:"
 # NavConfig fields the runner sets per cell or per episode: a spec's ``env`` must not set them.
-_RUNNER_FIELDS = ("scene", "n_humans", "crowd_model", "time_limit", "max_episode_steps_override", "n_robots")
+_RUNNER_FIELDS = ("scene", "n_humans", "crowd_model", "time_limit", "max_episode_steps_override", "n_robots",
+                  "replay_scene", "replay_start")
 # Spec fields that change the episodes' results: a resumed run must agree on them.
 _RESULT_FIELDS = ("seed", "time_limit", "max_steps", "env", "max_humans")
 _MAX_STRIKES = 3  # pool breaks with an episode in flight (no culprit known) before it counts as failed
@@ -156,6 +162,14 @@ class BenchmarkSpec:
         if unknown:
             raise ValueError(f"benchmark spec: unknown crowd model(s) {unknown}; valid: {list(CROWD_MODELS)} or "
                              f"'{LEARNED_CROWD_PREFIX}PATH' (pedestrians trained with navzoo.rl.train)")
+        if REPLAY_CROWD in self.crowds:
+            from navzoo.agents.replay import SCENE_PREFIX
+
+            other = [s for s in self.scenes if not s.startswith(SCENE_PREFIX)]
+            if other:
+                raise ValueError(f"benchmark spec: crowd 'replay' plays recorded people in their recordings' scenes "
+                                 f"only ({SCENE_PREFIX}eth, {SCENE_PREFIX}univ, {SCENE_PREFIX}zara1, ...), not in "
+                                 f"{other}; run those scenes with another crowd in a separate benchmark")
         if self.densities is not None and self.humans is not None:
             raise ValueError("benchmark spec: give densities (people per m²) or humans (counts), not both")
         if self.densities is not None:
@@ -423,11 +437,35 @@ def build_cells(spec: BenchmarkSpec) -> list[Cell]:
             n = int(sc.default_humans)
             levels.append(("default", round(n / free, 4) if free else 0.0, n))
         for crowd in spec.crowds:
+            if crowd == REPLAY_CROWD:  # everyone the window holds; each record gives its episode's count
+                cells.append(Cell(scene, scene_group(scene), crowd, REPLAY_LEVEL, 0.0, 0, free))
+                continue
             for label, dens, n in levels:
                 if spec.max_humans is not None:
                     n = min(n, spec.max_humans)
                 cells.append(Cell(scene, scene_group(scene), crowd, label, float(dens), int(n), free))
     return cells
+
+
+def replay_window(scene: str, seed: int, time_limit: float | None = None) -> float:
+    """The recording time (s) at which a replay episode of ``scene`` (``replay_<recording>``) starts.
+
+    Drawn from the episode's seed, so every method of an episode sees the same people: uniform over the starts on
+    a :data:`REPLAY_START_STEP` grid whose window ``[start, start + T]`` holds at least one recorded person
+    (T = ``time_limit``, else the scene's own limit, at most the recording's length).
+    """
+    from navzoo.agents.replay import SCENE_PREFIX, load_recording
+    from navzoo.world.library import get_scene
+
+    rec = load_recording(scene[len(SCENE_PREFIX):])
+    limit = float(time_limit) if time_limit is not None else float(get_scene(scene).time_limit)
+    span = min(limit, rec.duration)
+    starts = np.arange(0.0, max(rec.duration - span, 0.0) + 1e-9, REPLAY_START_STEP)
+    starts = starts[starts < rec.duration]
+    t0, t1 = rec.t0, rec.t1()
+    busy = starts[[bool(np.any((t0 <= s + span) & (t1 >= s))) for s in starts]]
+    pool = busy if busy.size else starts
+    return float(np.random.default_rng(int(seed)).choice(pool))
 
 
 def _env_kwargs(spec: BenchmarkSpec, cell: Cell, method: str) -> dict[str, Any]:
@@ -441,6 +479,8 @@ def _env_kwargs(spec: BenchmarkSpec, cell: Cell, method: str) -> dict[str, Any]:
     if cell.crowd.startswith(LEARNED_CROWD_PREFIX):
         # The learned pedestrians act themselves; the crowd model only names the env's default.
         kw.update(scene=cell.scene, n_humans=cell.n_humans, crowd_model="sfm", human_policy=cell.crowd)
+    elif cell.crowd == REPLAY_CROWD:  # n_humans None: a slot for everyone the window holds
+        kw.update(scene=cell.scene, n_humans=None, crowd_model=REPLAY_CROWD)
     else:
         kw.update(scene=cell.scene, n_humans=cell.n_humans, crowd_model=cell.crowd)
     if spec.time_limit is not None:
@@ -457,9 +497,13 @@ def build_tasks(spec: BenchmarkSpec, out: str | Path) -> list[EpisodeTask]:
     for cell in build_cells(spec):
         for ep in range(spec.episodes):
             seed = episode_seed(spec.seed, cell.scene, cell.crowd, cell.level, ep)
+            window = replay_window(cell.scene, seed, spec.time_limit) if cell.crowd == REPLAY_CROWD else None
             for method in spec.methods:
+                kw = _env_kwargs(spec, cell, method)
+                if window is not None:
+                    kw["replay_start"] = window
                 tasks.append(EpisodeTask(
-                    method=method, cell=cell, episode=ep, seed=seed, env_kwargs=_env_kwargs(spec, cell, method),
+                    method=method, cell=cell, episode=ep, seed=seed, env_kwargs=kw,
                     save_trajectory=ep < spec.save_trajectories, video=ep < spec.videos, out=str(out),
                 ))
     return tasks
@@ -630,7 +674,7 @@ def _run_episode(task: EpisodeTask) -> dict[str, Any]:
             raise ValueError(f"the benchmark runs one robot per episode, the env has {R}")
         start, goal = nav.pos[0].copy(), nav.goal[0].copy()
         reference = np.asarray(nav.paths[0], dtype=np.float64).copy()
-        rec: dict[str, list[np.ndarray]] = {k: [] for k in ("rp", "ryaw", "rvel", "hp", "hvel", "hyaw")}
+        rec: dict[str, list[np.ndarray]] = {k: [] for k in ("rp", "ryaw", "rvel", "hp", "hvel", "hyaw", "hact")}
 
         def snap() -> None:
             rec["rp"].append(nav.pos[0].copy())
@@ -639,6 +683,7 @@ def _run_episode(task: EpisodeTask) -> dict[str, Any]:
             rec["hp"].append(nav.pos[R:].copy())
             rec["hvel"].append(nav.vel[R:].copy())
             rec["hyaw"].append(nav.yaw[R:].copy())
+            rec["hact"].append(np.asarray(nav.human_active, dtype=bool).copy())  # replay: False while parked
 
         snap()
         frames = _VideoWriter(task, nav) if task.video else None
@@ -663,11 +708,13 @@ def _run_episode(task: EpisodeTask) -> dict[str, Any]:
         rp, hp = np.array(rec["rp"]), np.array(rec["hp"]).reshape(len(rec["rp"]), nav.n_humans, 2)
         hvel = np.array(rec["hvel"]).reshape(hp.shape)
         hyaw = np.array(rec["hyaw"]).reshape(hp.shape[:2])
+        hact = np.array(rec["hact"], dtype=bool).reshape(hp.shape[:2])
         metrics = episode_metrics(
             rp, hp, float(nav.radius[0]), nav.radius[R:], dt, event or "timeout",
             goal=goal, shortest_path=float(nav.shortest_path_length[0]), time_limit=time_limit,
             v_pref=float(nav.v_pref[0]), robot_yaw=np.array(rec["ryaw"]), robot_vel=np.array(rec["rvel"]),
             human_vel=hvel, human_yaw=hyaw, reference_path=reference, segments=nav.segments,
+            human_present=hact if nav.replay is not None else None,
         )
         metrics.pop("thresholds", None)  # the same for every episode: in run.json
         if nav.amp is not None:
@@ -680,7 +727,8 @@ def _run_episode(task: EpisodeTask) -> dict[str, Any]:
             path.parent.mkdir(parents=True, exist_ok=True)
             np.savez_compressed(
                 path, robot_pos=rp, robot_yaw=np.array(rec["ryaw"]), robot_vel=np.array(rec["rvel"]),
-                human_pos=hp, human_vel=hvel, human_yaw=hyaw, start=start, goal=goal, reference_path=reference,
+                human_pos=hp, human_vel=hvel, human_yaw=hyaw, human_present=hact, start=start, goal=goal,
+                reference_path=reference,
                 robot_radius=float(nav.radius[0]), human_radius=nav.radius[R:].copy(), dt=dt,
                 scene=task.cell.scene, method=task.method, event=metrics["event"], seed=task.seed,
                 episode=task.episode,
@@ -697,6 +745,10 @@ def _run_episode(task: EpisodeTask) -> dict[str, Any]:
         "seed": task.seed, "start": [float(v) for v in start], "goal": [float(v) for v in goal],
         "dt": dt, **metrics,
     }
+    if cell.crowd == REPLAY_CROWD:  # the window's people (slots) and where in the recording it starts
+        record.update(n_humans=int(nav.n_humans), density=round(nav.n_humans / cell.free_area_m2, 4)
+                      if cell.free_area_m2 else 0.0, replay_start=float(nav.config.replay_start),
+                      people_in_window=len(nav.replay.assignment))
     return {"record": _json_safe(record), "wall_s": time.perf_counter() - t0}
 
 
@@ -1401,8 +1453,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"a named protocol that sets scenes, crowd, people, robot and limits: {', '.join(protocol_names())}")
     parser.add_argument("--scenes", default=None, help="comma-separated scene names, or 'all' (see `navzoo scenes`)")
     parser.add_argument("--methods", default=None, help="comma-separated robot policies (orca, dwa, sfm, pure-pursuit, ...)")
-    parser.add_argument("--crowd", default=None, help="comma-separated crowd models: sfm, orca, orca_rvo2, diffusion, or "
-                        "rllib:PATH (pedestrians trained with navzoo train joint) (default sfm)")
+    parser.add_argument("--crowd", default=None, help="comma-separated crowd models: sfm, orca, orca_rvo2, diffusion, replay "
+                        "(recorded people, in the replay_* scenes only), or rllib:PATH (pedestrians trained with "
+                        "navzoo train joint) (default sfm)")
     level = parser.add_mutually_exclusive_group()
     level.add_argument("--density", default=None, help="people per m² of free space (of the circle/square for the CrowdNav protocols), e.g. 0.05,0.15,0.3")
     level.add_argument("--humans", default=None, help="people per scene (counts), e.g. 5,10")
