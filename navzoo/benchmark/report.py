@@ -620,6 +620,9 @@ def _run_lines(res: Mapping[str, Any]) -> list[str]:
             lv = ", ".join(str(n) for n in spec["humans"]) + " people"
         else:
             lv = "the scenes' default people"
+        crowds = spec.get("crowd") or []
+        if "replay" in crowds:  # the replay crowd brings its own people (runner.REPLAY_LEVEL)
+            lv = "the recorded people" if len(crowds) == 1 else f"{lv} (replay: the recorded people)"
         ns, nm = len(spec.get("scenes", [])), len(spec.get("methods", []))
         lines.append(f"{ns} scene{'s' * (ns != 1)} × {nm} method{'s' * (nm != 1)} × crowd "
                      f"{', '.join(spec.get('crowd', []))} × {lv} × {spec.get('episodes')} episodes, seed "
