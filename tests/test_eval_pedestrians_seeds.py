@@ -127,3 +127,40 @@ def test_a_trip_after_a_timeout_is_timed_on_the_path_still_ahead():
         left = remaining_path_length(nav, i)
         assert left <= nav.shortest_path_length[i] + 1e-9 and left == pytest.approx(nav.shortest_path_length[i], abs=0.1)
     nav.close()
+
+
+def test_heldout_scenes_are_followed_with_their_own_people(monkeypatch, capsys):
+    """``navzoo eval pedestrians --scenes heldout``: the ten held-out scenes with HELDOUT_SCENES' people, in the
+    following runs and the kinematic realism crowd; an unknown scene is refused before the clip tracking."""
+    import navzoo.agents.amp.tracking as tracking
+
+    names = tuple(n for n, _ in pedestrians.HELDOUT_SCENES)
+    counts = [n for _, n in pedestrians.HELDOUT_SCENES]
+    assert pedestrians.people_per_scene(len(names)) == counts  # the spread gives each its own count
+    assert pedestrians.expand_scenes("heldout") == names
+    assert pedestrians.expand_scenes(["lobby", "heldout"]) == ("lobby", *names)
+    for bad, msg in (("lobby,atlantis", "atlantis"), ("", "no scene given")):
+        with pytest.raises(ValueError, match=msg):
+            pedestrians.expand_scenes(bad)
+    monkeypatch.setattr(tracking, "track_clips", lambda **k: pytest.fail("tracked clips before checking the scenes"))
+    from navzoo.cli import main
+
+    assert main(["eval", "pedestrians", "--scenes", "heldout,atlantis", "--no-throughput"]) == 2
+    assert "atlantis" in capsys.readouterr().err
+
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def fake_following(scenes, seconds, seed, policy_dir, **kw):
+        seen["scenes"] = tuple(scenes)
+        raise Stop
+
+    monkeypatch.setattr(tracking, "track_clips", lambda **k: {k2: 0.0 for k2 in (
+        "mean_pos_error_m", "max_pos_error_m", "mean_rot_error_rad", "clip_success_rate", "worst_pos_error_m",
+        "fall_rate", "n_clips")})
+    monkeypatch.setattr(pedestrians, "following", fake_following)
+    with pytest.raises(Stop):
+        pedestrians.evaluate(scenes="heldout", with_throughput=False)
+    assert seen["scenes"] == names

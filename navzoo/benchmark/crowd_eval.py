@@ -115,8 +115,6 @@ PAPER_RELIABILITY: dict[str, dict[str, float]] = {
 }
 REALISM_DT = 0.1  # s, the kinematic crowds' control period in the realism runs (NavConfig's default)
 QUICK_SCENES = ("lobby", "corridor")
-#: ``--scenes heldout``: the ten library scenes no setting of the following protocol was chosen on.
-HELDOUT = "heldout"
 QUICK_SECONDS = 20.0
 
 
@@ -355,16 +353,8 @@ def _check_crowds(crowds: Sequence[str]) -> tuple[str, ...]:
 
 def _check_scenes(scenes: Sequence[str]) -> tuple[str, ...]:
     """Library scene names; ``heldout`` stands for the scenes of :data:`navzoo.benchmark.pedestrians.HELDOUT_SCENES`
-    (in their order, so that the 3-15 people spread over them are their own counts)."""
-    from navzoo.world.library import list_scenes
-
-    held = [name for name, _ in pedestrians.HELDOUT_SCENES]
-    scenes = tuple(s for item in scenes for s in (held if item == HELDOUT else [item]))
-    known = list_scenes()
-    bad = [s for s in scenes if s not in known]
-    if bad or not scenes:
-        raise ValueError(f"unknown scene(s) {bad or scenes!r}; choose from {', '.join(known)}")
-    return scenes
+    (:func:`navzoo.benchmark.pedestrians.expand_scenes`)."""
+    return pedestrians.expand_scenes(scenes)
 
 
 def crowd_scene(crowd: str, scene: str, n: int, seconds: float, seed: int = 0, dt: float = REALISM_DT,

@@ -50,7 +50,26 @@ SCENES = ("station", "home", "grocery", "circle_crossing", "square_crossing", "c
 HELDOUT_SCENES = (("l_corridor", 3), ("t_junction", 4), ("cluttered_room", 6), ("bottleneck", 7), ("lecture_hall", 8),
                   ("library_stacks", 10), ("office_cubicles", 11), ("museum_hall", 12), ("warehouse_aisles", 14),
                   ("parking_garage", 15))
+#: ``--scenes heldout`` (``navzoo eval pedestrians``, ``navzoo eval crowd``): the scenes of :data:`HELDOUT_SCENES`.
+HELDOUT = "heldout"
 DT = 1.0 / 30.0
+
+
+def expand_scenes(names: Any) -> tuple[str, ...]:
+    """Scene names (a list, or one comma-separated string) with ``heldout`` standing for the scenes of
+    :data:`HELDOUT_SCENES`, in their order; unknown names and an empty list are refused, naming the valid scenes.
+    Their people, spread 3-15 over the held-out scenes by :func:`people_per_scene`, are HELDOUT_SCENES' own counts."""
+    from navzoo.world.library import list_scenes
+
+    items = [v.strip() for v in names.split(",")] if isinstance(names, str) else [str(v).strip() for v in names]
+    held = [name for name, _ in HELDOUT_SCENES]
+    scenes = tuple(s for item in items if item for s in (held if item == HELDOUT else [item]))
+    known = list_scenes()
+    bad = [s for s in scenes if s not in known]
+    if bad or not scenes:
+        what = f"unknown scene(s) {bad!r}" if bad else "no scene given"
+        raise ValueError(f"{what}; choose from {', '.join(known)} (or '{HELDOUT}' for the ten held-out scenes)")
+    return scenes
 
 
 def people_per_scene(n_scenes: int, lo: int = 3, hi: int = 15) -> list[int]:
@@ -659,12 +678,15 @@ def record_video(path: str | Path, scene: str = "lobby", n: int = 12, seconds: f
 
 def evaluate(quick: bool = False, motions: str | None = None, policy_dir: str | None = None, seed: int = 0,
              video: str | None = None, with_throughput: bool = True, workers: int = 1,
-             seeds: list[int] | None = None, out_file: str | Path | None = None) -> dict[str, Any]:
+             seeds: list[int] | None = None, out_file: str | Path | None = None,
+             scenes: Any = None) -> dict[str, Any]:
     """All four measurements (module docstring). ``seeds`` runs the following protocol once per seed
     (:func:`following`); realism then uses the first seed, as ``seed`` does otherwise. With ``out_file``
     (the CLI's ``--out``) the result is written there, and until then the following runs are kept in
     ``<out_file>.following.jsonl`` as they end, so that an interrupted evaluation rerun with the same
-    settings resumes there; that file goes once the result is written."""
+    settings resumes there; that file goes once the result is written. ``scenes``: the scenes of the following
+    runs and of the kinematic realism crowd (:func:`expand_scenes`; ``"heldout"`` for the held-out ten), 3-15
+    people spread over them; default the protocol's 8 (quick: lobby and corridor)."""
     from navzoo.agents.amp.tracking import load_motions, track_clips
 
     if seeds is not None:
@@ -672,7 +694,10 @@ def evaluate(quick: bool = False, motions: str | None = None, policy_dir: str | 
         seed = seeds[0]
 
     t0 = time.time()
-    scenes = ("lobby", "corridor") if quick else SCENES
+    if scenes is not None:
+        scenes = expand_scenes(scenes)  # before the minutes of clip tracking
+    else:
+        scenes = ("lobby", "corridor") if quick else SCENES
     seconds = 20.0 if quick else 200.0
     lib = load_motions(motions)
     kwargs = {} if policy_dir is None else {"policy_dir": policy_dir}
@@ -778,6 +803,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", default=None, metavar="S1,S2,...",
                         help="run the following protocol once per seed (e.g. 0,1,2,3) and report the rates pooled "
                              "over the seeds, each seed's rates and their spread; realism uses the first seed")
+    parser.add_argument("--scenes", default=None,
+                        help="scenes of the following runs, comma-separated (default the protocol's 8; quick: "
+                             "lobby,corridor); 'heldout': the 10 library scenes no setting was chosen on")
     parser.add_argument("--video", default=None, help="also write an mp4 of an AMP crowd here")
     parser.add_argument("--no-throughput", action="store_true")
     parser.add_argument("--workers", type=int, default=1, help="processes for the scenes of the following run")
@@ -795,7 +823,7 @@ def run_cli(args: argparse.Namespace) -> int:
         return 0
     seeds = seeds_option("navzoo eval pedestrians", args.seed, args.seeds)
     result = evaluate(args.quick, args.motions, args.policy, 0 if args.seed is None else args.seed, args.video,
-                      not args.no_throughput, args.workers, seeds=seeds, out_file=args.out)
+                      not args.no_throughput, args.workers, seeds=seeds, out_file=args.out, scenes=args.scenes)
     print(json.dumps(result, indent=None if args.json else 2, default=float))  # evaluate wrote --out
     return 0
 
