@@ -388,6 +388,14 @@ def test_replay_episodes_play_a_window_of_the_recording_that_every_method_shares
     assert [t.env_kwargs for t in again] == [t.env_kwargs for t in tasks]
 
 
+def test_replay_with_physics_bodies_is_refused_before_any_episode(tmp_path):
+    spec = resolve_spec(scenes="replay_zara1", methods="orca", crowd="replay", episodes=1,
+                        env={"human_model": "amp"})[0]
+    with pytest.raises(ValueError, match="replay.*kinematic"):
+        run_benchmark(spec, tmp_path / "run", workers=0, progress=False)
+    assert not (tmp_path / "run" / "episodes.jsonl").exists()
+
+
 def test_a_replay_episode_is_benchmarked_without_the_parked_peoples_jumps(tmp_path):
     """A robot among recorded people: the record names the window and its people; absent people (parked 1 km
     east) count neither in the distances nor in the trajectory file's people."""

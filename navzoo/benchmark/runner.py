@@ -548,6 +548,11 @@ def validate_spec(spec: BenchmarkSpec) -> None:
     if robot:
         data["robot"] = dict(robot)
     NavConfig.from_dict(data)  # ValueError naming unknown keys / bad values
+    if REPLAY_CROWD in spec.crowds:  # e.g. physics bodies cannot walk recorded tracks
+        try:
+            NavConfig.from_dict({**data, "crowd_model": REPLAY_CROWD})
+        except ValueError as exc:
+            raise ValueError(f"benchmark spec: crowd 'replay' with this env: {exc}") from exc
 
 
 # ---------------------------------------------------------------------------------------------------------
