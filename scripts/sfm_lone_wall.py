@@ -1,36 +1,61 @@
-"""Does one social-force person cross a scene alone, and how does that depend on the wall potential?
+"""How the social-force wall potential holds people back: one person alone, or a crowd, per wall setting.
 
     python scripts/sfm_lone_wall.py --scene cluttered_room --seeds 0,1,2,3 --walls 1.0:0.1,0.3:0.1,1.0:0.05 [--json]
+    python scripts/sfm_lone_wall.py --crowd --scenes protocol,heldout --seeds 0 --walls 1.0:0.1,0.3:0.1 [--workers 2]
 
-Runs ``NavEnv(scene, n_robots=0, n_humans=1, crowd_model="sfm")`` for ``--seconds`` (default 200) per seed with the
-person frozen on :class:`navzoo.agents.crowd.CrowdPolicy` ("sfm") and the wall potential ``A_wall:B_wall`` of
-:class:`navzoo.agents.sfm.SocialForceParams` (the default is 1.0:0.1), and prints the goals the person reached per
-seed. No crowd, no robot: a person who reaches no goal is held by the walls and the path alone.
+Lone (default): ``NavEnv(scene, n_robots=0, n_humans=1, crowd_model="sfm")`` for ``--seconds`` (default 200) per
+seed, the person frozen on :class:`navzoo.agents.crowd.CrowdPolicy` ("sfm") with the wall potential
+``A_wall:B_wall`` of :class:`navzoo.agents.sfm.SocialForceParams` (the default is 1.0:0.1); prints the goals the
+person reached per seed. No crowd, no robot: a person who reaches no goal is held by the walls and the path alone.
+
+``--crowd``: the same with the following protocol's people (3-15 per scene, ``protocol`` = its 8 scenes,
+``heldout`` = the 10 held-out scenes, or ``SCENE:N``), kinematic bodies; per scene and wall setting the goals
+reached, the people's mean speed and the share of person-steps whose body edge is within 5 cm of an obstacle
+(``Scene.clearance`` of the centre minus the radius; the scene's outer bounds are not counted).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+NEAR_WALL_M = 0.05
 
 
-def lone_goals(scene: str, seed: int, seconds: float, a_wall: float, b_wall: float) -> int:
-    """Goals one social-force person reaches in ``scene`` in ``seconds`` with wall potential (a_wall, b_wall)."""
+def run_sfm(scene: str, n: int, seed: int, seconds: float, a_wall: float, b_wall: float) -> dict:
+    """``n`` social-force people in ``scene`` for ``seconds`` with wall potential (a_wall, b_wall): goals reached,
+    mean speed (m/s) and the share of person-steps with the body edge within :data:`NEAR_WALL_M` of an obstacle."""
     from navzoo.agents.crowd import CrowdPolicy
     from navzoo.agents.sfm import SocialForceParams
     from navzoo.envs.nav_env import NavEnv
     from navzoo.envs.wrappers import FrozenAgents
 
-    env = NavEnv(scene=scene, n_robots=0, n_humans=1, crowd_model="sfm", time_limit=seconds)
+    env = NavEnv(scene=scene, n_robots=0, n_humans=n, crowd_model="sfm", time_limit=seconds)
     policy = CrowdPolicy("sfm", sfm_params=SocialForceParams(A_wall=a_wall, B_wall=b_wall))
     wrapped = FrozenAgents(env, lambda a: a.startswith("human_"), policy)
+    speeds, near = [], []
     try:
         wrapped.reset(seed=seed)
+        radius = env.radius[env.n_robots:]
         while not env._needs_reset:
             wrapped.step({})
-        return int(env.goals_reached.sum())
+            pos = env.pos[env.n_robots:]
+            speeds.append(np.linalg.norm(env.vel[env.n_robots:], axis=1))
+            near.append(env.scene.clearance(pos) - radius < NEAR_WALL_M)
+        return {"scene": scene, "people": n, "seed": seed, "A_wall": a_wall, "B_wall": b_wall,
+                "goals": int(env.goals_reached.sum()), "mean_speed": round(float(np.mean(speeds)), 3),
+                "near_wall_share": round(float(np.mean(near)), 4)}
     finally:
         wrapped.close()
+
+
+def lone_goals(scene: str, seed: int, seconds: float, a_wall: float, b_wall: float) -> int:
+    """Goals one social-force person reaches in ``scene`` in ``seconds`` with wall potential (a_wall, b_wall)."""
+    return run_sfm(scene, 1, seed, seconds, a_wall, b_wall)["goals"]
 
 
 def parse_walls(text: str) -> list[tuple[float, float]]:
@@ -49,34 +74,75 @@ def parse_walls(text: str) -> list[tuple[float, float]]:
     return out
 
 
+def crowd_scenes(text: str) -> dict[str, int]:
+    """Scene -> people of ``--scenes`` for ``--crowd``: ``protocol``, ``heldout``, ``SCENE:N`` or a protocol scene."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from amp_target_ablation import parse_scenes
+
+    out: dict[str, int] = {}
+    for item in (x.strip() for x in text.split(",") if x.strip()):
+        out.update(parse_scenes(None) if item == "protocol" else parse_scenes(item))
+    return out
+
+
+def _job(args: tuple) -> dict:
+    return run_sfm(*args)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", default="cluttered_room")
+    parser.add_argument("--scene", default="cluttered_room", help="the lone person's scene")
+    parser.add_argument("--crowd", action="store_true", help="crowds of the following protocol's size in --scenes")
+    parser.add_argument("--scenes", default="protocol,heldout", help="with --crowd: protocol, heldout, SCENE:N, ...")
     parser.add_argument("--seeds", default="0,1,2,3")
     parser.add_argument("--seconds", type=float, default=200.0)
     parser.add_argument("--walls", default="1.0:0.1,0.3:0.1,1.0:0.05", help="A_WALL:B_WALL,... (default 1.0:0.1 first)")
+    parser.add_argument("--workers", type=int, default=1, help="processes for --crowd runs")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
-    try:
-        walls = parse_walls(args.walls)
-        seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
-    except ValueError as exc:
-        parser.error(str(exc))
     from navzoo.world.library import get_scene
 
     try:
-        get_scene(args.scene)
+        walls = parse_walls(args.walls)
+        seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
+        scenes = crowd_scenes(args.scenes) if args.crowd else {args.scene: 1}
+        for name in scenes:
+            get_scene(name)
     except ValueError as exc:
         parser.error(str(exc))
-    rows = [{"A_wall": a, "B_wall": b, "goals": [lone_goals(args.scene, s, args.seconds, a, b) for s in seeds]}
-            for a, b in walls]
-    result = {"scene": args.scene, "seeds": seeds, "seconds": args.seconds, "rows": rows}
+    if not args.crowd:
+        rows = [{"A_wall": a, "B_wall": b, "goals": [lone_goals(args.scene, s, args.seconds, a, b) for s in seeds]}
+                for a, b in walls]
+        result = {"scene": args.scene, "seeds": seeds, "seconds": args.seconds, "rows": rows}
+        if args.json:
+            print(json.dumps(result))
+        else:
+            print(f"one social-force person in {args.scene}, {args.seconds:g} s, seeds {seeds}")
+            for r in rows:
+                print(f"  A_wall {r['A_wall']:g}, B_wall {r['B_wall']:g}: goals per seed {r['goals']}")
+        return 0
+    jobs = [(sc, n, s, args.seconds, a, b) for sc, n in scenes.items() for s in seeds for a, b in walls]
+    if args.workers > 1:
+        from multiprocessing import get_context
+
+        with get_context("spawn").Pool(args.workers) as pool:
+            runs = pool.map(_job, jobs)
+    else:
+        runs = [_job(j) for j in jobs]
+    result = {"scenes": scenes, "seeds": seeds, "seconds": args.seconds, "walls": walls, "runs": runs}
     if args.json:
         print(json.dumps(result))
-    else:
-        print(f"one social-force person in {args.scene}, {args.seconds:g} s, seeds {seeds}")
-        for r in rows:
-            print(f"  A_wall {r['A_wall']:g}, B_wall {r['B_wall']:g}: goals per seed {r['goals']}")
+        return 0
+    print(f"social-force crowds, {args.seconds:g} s, seeds {seeds}: goals / mean speed (m/s) / share near a wall")
+    print("| scene (people) | " + " | ".join(f"A_wall {a:g}, B_wall {b:g}" for a, b in walls) + " |")
+    print("|---|" + "---|" * len(walls))
+    for sc, n in scenes.items():
+        cells = []
+        for a, b in walls:
+            rs = [r for r in runs if r["scene"] == sc and (r["A_wall"], r["B_wall"]) == (a, b)]
+            cells.append(f"{sum(r['goals'] for r in rs)} / {np.mean([r['mean_speed'] for r in rs]):.2f} / "
+                         f"{np.mean([r['near_wall_share'] for r in rs]):.3f}")
+        print(f"| {sc} ({n}) | " + " | ".join(cells) + " |")
     return 0
 
 

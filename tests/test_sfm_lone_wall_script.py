@@ -21,3 +21,14 @@ def test_the_default_walls_hold_a_lone_person_in_the_cluttered_room_and_softer_o
 def test_bad_wall_lists_are_refused_by_name(bad):
     with pytest.raises(ValueError, match="--walls"):
         sfm_lone_wall.parse_walls(bad)
+
+
+def test_a_crowd_run_reports_goals_speed_and_wall_proximity(capsys):
+    row = sfm_lone_wall.run_sfm("doorway", 4, 0, 10.0, 1.0, 0.1)
+    assert set(row) >= {"goals", "mean_speed", "near_wall_share"} and row["people"] == 4
+    assert 0.1 < row["mean_speed"] < 2.0 and 0.0 <= row["near_wall_share"] <= 1.0
+    assert sfm_lone_wall.crowd_scenes("heldout,doorway")["cluttered_room"] == 6
+    assert sfm_lone_wall.main(["--crowd", "--scenes", "station", "--seeds", "0", "--seconds", "5",
+                               "--walls", "1.0:0.1,0.3:0.1"]) == 0
+    out = capsys.readouterr().out
+    assert "| station (3) |" in out and "A_wall 0.3" in out
