@@ -2,6 +2,7 @@
 
     python scripts/sfm_lone_wall.py --scene cluttered_room --seeds 0,1,2,3 --walls 1.0:0.1,0.3:0.1,1.0:0.05 [--json]
     python scripts/sfm_lone_wall.py --crowd --scenes protocol,heldout --seeds 0 --walls 1.0:0.1,0.3:0.1 [--workers 2]
+    python scripts/sfm_lone_wall.py --markdown RESULT.json          # the table of a --crowd --json result
 
 Lone (default): ``NavEnv(scene, n_robots=0, n_humans=1, crowd_model="sfm")`` for ``--seconds`` (default 200) per
 seed, the person frozen on :class:`navzoo.agents.crowd.CrowdPolicy` ("sfm") with the wall potential
@@ -99,7 +100,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--walls", default="1.0:0.1,0.3:0.1,1.0:0.05", help="A_WALL:B_WALL,... (default 1.0:0.1 first)")
     parser.add_argument("--workers", type=int, default=1, help="processes for --crowd runs")
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--markdown", default=None, metavar="RESULT_JSON", help="print the table of a --crowd --json "
+                        "result and exit")
     args = parser.parse_args(argv)
+    if args.markdown:
+        print(markdown(json.loads(Path(args.markdown).read_text())))
+        return 0
     from navzoo.world.library import get_scene
 
     try:
@@ -130,20 +136,29 @@ def main(argv: list[str] | None = None) -> int:
     else:
         runs = [_job(j) for j in jobs]
     result = {"scenes": scenes, "seeds": seeds, "seconds": args.seconds, "walls": walls, "runs": runs}
-    if args.json:
-        print(json.dumps(result))
-        return 0
-    print(f"social-force crowds, {args.seconds:g} s, seeds {seeds}: goals / mean speed (m/s) / share near a wall")
-    print("| scene (people) | " + " | ".join(f"A_wall {a:g}, B_wall {b:g}" for a, b in walls) + " |")
-    print("|---|" + "---|" * len(walls))
-    for sc, n in scenes.items():
+    print(json.dumps(result) if args.json else markdown(result))
+    return 0
+
+
+def markdown(result: dict) -> str:
+    """The table of a ``--crowd`` result: per scene and wall setting, goals summed over the seeds / mean speed /
+    share of person-steps near a wall (means over the seeds)."""
+    walls = [tuple(w) for w in result["walls"]]
+    lines = [f"social-force crowds, {result['seconds']:g} s, seeds {result['seeds']}: goals / mean speed (m/s) / "
+             "share near a wall",
+             "| scene (people) | " + " | ".join(f"A_wall {a:g}, B_wall {b:g}" for a, b in walls) + " |",
+             "|---|" + "---|" * len(walls)]
+    totals = {w: 0 for w in walls}
+    for sc, n in result["scenes"].items():
         cells = []
-        for a, b in walls:
-            rs = [r for r in runs if r["scene"] == sc and (r["A_wall"], r["B_wall"]) == (a, b)]
+        for w in walls:
+            rs = [r for r in result["runs"] if r["scene"] == sc and (r["A_wall"], r["B_wall"]) == w]
+            totals[w] += sum(r["goals"] for r in rs)
             cells.append(f"{sum(r['goals'] for r in rs)} / {np.mean([r['mean_speed'] for r in rs]):.2f} / "
                          f"{np.mean([r['near_wall_share'] for r in rs]):.3f}")
-        print(f"| {sc} ({n}) | " + " | ".join(cells) + " |")
-    return 0
+        lines.append(f"| {sc} ({n}) | " + " | ".join(cells) + " |")
+    lines.append("| all goals | " + " | ".join(str(totals[w]) for w in walls) + " |")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":

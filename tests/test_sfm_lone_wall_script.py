@@ -31,4 +31,4 @@ def test_a_crowd_run_reports_goals_speed_and_wall_proximity(capsys):
     assert sfm_lone_wall.main(["--crowd", "--scenes", "station", "--seeds", "0", "--seconds", "5",
                                "--walls", "1.0:0.1,0.3:0.1"]) == 0
     out = capsys.readouterr().out
-    assert "| station (3) |" in out and "A_wall 0.3" in out
+    assert "| station (3) |" in out and "A_wall 0.3" in out and "| all goals |" in out
