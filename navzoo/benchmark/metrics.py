@@ -195,6 +195,13 @@ def _segment_origin_distance(p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
     return np.linalg.norm(p0 + s[..., None] * d, axis=-1)
 
 
+def _present_only(gaps: np.ndarray, present: np.ndarray | None) -> np.ndarray:
+    """``gaps`` with absent people's entries at inf (``present`` of the same shape, or None: unchanged)."""
+    if present is None:
+        return gaps
+    return np.where(np.asarray(present, dtype=bool).reshape(gaps.shape), gaps, np.inf)
+
+
 def swept_person_gaps(
     robot_pos: np.ndarray, human_pos: np.ndarray, robot_radius: float, human_radius: np.ndarray | float,
     present: np.ndarray | None = None,
@@ -220,9 +227,7 @@ def swept_person_gaps(
         start = np.where(appears[..., None], rp[:-1, None, :] - hp[1:], start)  # the robot moves, the person not
     d = _segment_origin_distance(start, rel[1:])
     gaps = d - robot_radius - _radii(human_radius, hp.shape[1])[None, :]
-    if present is not None:
-        gaps = np.where(present[1:], gaps, np.inf)
-    return gaps
+    return _present_only(gaps, None if present is None else present[1:])
 
 
 def swept_person_collisions(
@@ -502,9 +507,7 @@ def _step_gaps(
     rp = _pos(robot_pos)
     hp = _humans(human_pos, len(rp))
     g = person_gaps(rp, hp, robot_radius, _radii(human_radius, hp.shape[1]))[1:].reshape(len(rp) - 1, hp.shape[1])
-    if present is not None:
-        g = np.where(np.asarray(present, dtype=bool).reshape(len(rp), hp.shape[1])[1:], g, np.inf)
-    return g
+    return _present_only(g, None if present is None else np.asarray(present).reshape(len(rp), hp.shape[1])[1:])
 
 
 def min_person_distance(
@@ -524,9 +527,7 @@ def min_person_distance(
     rp = _pos(robot_pos)
     if not swept or len(rp) < 2:
         hp = _humans(human_pos, len(rp))
-        g = person_gaps(rp, hp, robot_radius, _radii(human_radius, hp.shape[1]))
-        if present is not None:
-            g = np.where(np.asarray(present, dtype=bool).reshape(g.shape), g, np.inf)
+        g = _present_only(person_gaps(rp, hp, robot_radius, _radii(human_radius, hp.shape[1])), present)
     else:
         g = swept_person_gaps(rp, human_pos, robot_radius, human_radius, present)
     return float(g.min()) if g.size else float("inf")
