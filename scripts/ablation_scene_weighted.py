@@ -2,7 +2,7 @@
 scene weights.
 
     python scripts/ablation_scene_weighted.py --a 'docs/results/diffusion_sight/floor2_s*' ... \\
-        --b 'docs/results/diffusion_sight/fis_s*' ... [--weight-seeds 0,1,2,3,4,5] [--json]
+        --b 'docs/results/diffusion_sight/fis_s*' ... [--weight-seeds 0,1,2,3,4,5] [--scenes protocol|heldout|S,S] [--json]
 
 ``--a`` and ``--b`` take result files of ``scripts/amp_target_ablation.py`` (globs; one row per scene run). Scenes can
 have run on different numbers of seeds; each scene is compared on the seeds that both settings ran. The pooled rates
@@ -26,8 +26,9 @@ import numpy as np
 from navzoo.benchmark.pedestrians import goal_trip_rates
 
 
-def load(patterns: Sequence[str]) -> dict[tuple[str, int], dict]:
-    """Rows of the files matching ``patterns``, keyed by (scene, seed); a run found twice is an error."""
+def load(patterns: Sequence[str], scenes: Sequence[str] | None = None) -> dict[tuple[str, int], dict]:
+    """Rows of the files matching ``patterns``, keyed by (scene, seed); a run found twice is an error. With
+    ``scenes``, only those scenes' rows."""
     rows: dict[tuple[str, int], dict] = {}
     files = sorted({f for pat in patterns for f in glob.glob(pat)})
     if not files:
@@ -40,6 +41,10 @@ def load(patterns: Sequence[str]) -> dict[tuple[str, int], dict]:
                 if key in rows:
                     raise SystemExit(f"{f}: scene {key[0]} seed {key[1]} is in more than one file")
                 rows[key] = r
+    if scenes is not None:
+        rows = {k: r for k, r in rows.items() if k[0] in scenes}
+        if not rows:
+            raise SystemExit(f"no rows of scenes {list(scenes)} in {files}")
     return rows
 
 
@@ -106,10 +111,20 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--weight-seeds", default="0,1,2,3,4,5", help="seeds whose trips of A weigh the scenes")
     ap.add_argument("--by-seed", action="store_true",
                     help="pool each seed's scene runs instead, and compare the settings seed by seed")
+    ap.add_argument("--scenes", default=None, metavar="S,S",
+                    help="only these scenes ('protocol' for the 8 of the following protocol, 'heldout' for the 10)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
+    only = None
+    if args.scenes is not None:
+        from navzoo.benchmark.pedestrians import scene_names
+
+        try:
+            only = scene_names(args.scenes)
+        except ValueError as exc:
+            ap.error(str(exc))
     if args.by_seed:
-        res = by_seed(load(args.a), load(args.b))
+        res = by_seed(load(args.a, only), load(args.b, only))
         if args.json:
             print(json.dumps(res, indent=1))
             return
@@ -120,7 +135,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         print(f"B - A: {res['diff_mean_points']:+.2f} ± {res['diff_se_points']:.2f} points (mean ± s.e. over "
               f"{len(res['seeds'])} seeds); A's seeds spread {res['a_sd_points']:.1f} points (s.d.)")
         return
-    res = compare(load(args.a), load(args.b), [int(s) for s in args.weight_seeds.split(",")])
+    res = compare(load(args.a, only), load(args.b, only), [int(s) for s in args.weight_seeds.split(",")])
     if args.json:
         print(json.dumps(res, indent=1))
         return

@@ -291,13 +291,14 @@ def read_rows(paths: str | list[str]) -> list[dict]:
 
 
 def summary(path: str | list[str], by_scene: bool = False, pooled: bool = False,
-            seeds: list[int] | None = None) -> str:
+            seeds: list[int] | None = None, scenes: tuple[str, ...] | None = None) -> str:
     """Markdown table of one or more result files (:func:`read_rows`, a run found twice counted once): one
     line per configuration, crowd model and seed, or with
     ``by_scene`` one line per configuration, crowd model and scene, pooling the seeds, or with ``pooled``
     one line per configuration and crowd model, pooling seeds and scenes (trips counted together, not
     rates averaged); ``seeds`` keeps only those seeds' rows. Where the rows hold them, a second line counts
-    the same runs one trip per goal (``pedestrians.Trips``)."""
+    the same runs one trip per goal (``pedestrians.Trips``). ``scenes`` keeps only those scenes' rows (the
+    labels count the scenes found; a ValueError when none is)."""
     from navzoo.benchmark.pedestrians import goal_trip_rates
 
     if by_scene and pooled:
@@ -309,6 +310,10 @@ def summary(path: str | list[str], by_scene: bool = False, pooled: bool = False,
             where = path if isinstance(path, str) else ", ".join(path)
             raise ValueError(f"{where} holds no rows of seed(s) {', '.join(map(str, missing))}")
         rows = [r for r in rows if r["seed"] in seeds]
+    if scenes is not None:
+        rows = [r for r in rows if r["scene"] in scenes]
+        if not rows:
+            raise ValueError(f"no rows of scene(s) {', '.join(scenes)} in the result files")
     keys = ("success", "off_path", "fall", "timeout")
     lines = ["| configuration | trips | success | off path | fall | timeout | map contact | agent contact | path error (m) |",
              "|---|---|---|---|---|---|---|---|---|"]
@@ -370,11 +375,16 @@ def main(argv: list[str] | None = None) -> int:
                     help="with --summary: one line per configuration, seeds and scenes pooled")
     ap.add_argument("--summary-seeds", default=None, metavar="S,S",
                     help="with --summary: only these seeds' rows (default: all in the file)")
+    ap.add_argument("--summary-scenes", default=None, metavar="S,S",
+                    help="with --summary: only these scenes' rows ('protocol' for the 8, 'heldout' for the 10)")
     args = ap.parse_args(argv)
     if args.summary:
         try:
             only = None if args.summary_seeds is None else [int(x) for x in args.summary_seeds.split(",")]
-            print(summary(args.summary, by_scene=args.by_scene, pooled=args.pooled, seeds=only))
+            from navzoo.benchmark.pedestrians import scene_names
+
+            keep = None if args.summary_scenes is None else scene_names(args.summary_scenes)
+            print(summary(args.summary, by_scene=args.by_scene, pooled=args.pooled, seeds=only, scenes=keep))
         except (ValueError, OSError) as e:
             ap.error(str(e))
         return 0

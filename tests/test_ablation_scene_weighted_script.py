@@ -66,3 +66,19 @@ def test_by_seed_pools_each_seeds_scenes_and_pairs_the_settings(tmp_path, capsys
     assert scenes["x"]["success_by_seed"] == {"a": {0: 5, 1: 5, 2: 5}, "b": {0: 5, 1: 6, 2: 7}}
     sw.main(["--by-seed", "--a", str(tmp_path / "a.jsonl"), "--b", str(tmp_path / "b.jsonl")])
     assert "B - A: +5.00 ± 2.89 points" in capsys.readouterr().out
+
+
+def test_scenes_keeps_only_the_named_scenes(tmp_path, capsys):
+    """``--scenes protocol|heldout|S,S``: the comparison of one scene set only; a filter that keeps nothing is refused."""
+    a = [_row(s, k, 5, 5) for s in ("lobby", "bottleneck") for k in range(2)]
+    b = [_row("lobby", k, 5, 5) for k in range(2)] + [_row("bottleneck", k, 9, 1) for k in range(2)]
+    fa, fb = _write(tmp_path / "a.jsonl", a), _write(tmp_path / "b.jsonl", b)
+    sw.main(["--by-seed", "--scenes", "protocol", "--a", fa, "--b", fb])
+    assert "B - A: +0.00" in capsys.readouterr().out  # the lobby only
+    sw.main(["--by-seed", "--scenes", "heldout", "--a", fa, "--b", fb])
+    assert "B - A: +40.00" in capsys.readouterr().out  # the bottleneck only
+    with pytest.raises(SystemExit, match="no rows of scenes"):
+        sw.load([fa], ("station",))
+    with pytest.raises(SystemExit):
+        sw.main(["--scenes", "atlantis", "--a", fa, "--b", fb])
+    assert "atlantis" in capsys.readouterr().err

@@ -205,6 +205,17 @@ def test_the_pooled_summary_counts_trips_over_seeds_and_scenes(tmp_path, capsys)
     assert "no rows of seed(s) 7" in capsys.readouterr().err
     assert ablation.main(["--summary", str(path), "--pooled", "--summary-seeds", "2"]) == 0
     assert "| c, seeds 2 pooled (1 scenes) | 8 | 0.875 |" in capsys.readouterr().out
+    # --summary-scenes: one scene set ('protocol', 'heldout' or names); a scene the files lack is refused
+    assert ablation.summary(str(path), pooled=True, scenes=("home",)).splitlines()[2].startswith(
+        "| c, seeds 1 pooled (1 scenes) | 2 | 0.500 |")
+    assert ablation.main(["--summary", str(path), "--pooled", "--summary-scenes", "protocol"]) == 0
+    assert "| c, seeds 0,1,2 pooled (2 scenes) | 14 |" in capsys.readouterr().out
+    assert ablation.summary(str(path), scenes=("lobby", "bottleneck")) == ablation.summary(str(path), scenes=("lobby",))
+    with pytest.raises(ValueError, match="no rows of scene.*bottleneck"):
+        ablation.summary(str(path), scenes=("bottleneck",))
+    with pytest.raises(SystemExit):
+        ablation.main(["--summary", str(path), "--summary-scenes", "heldout"])
+    assert "l_corridor" in capsys.readouterr().err
 
 
 def test_a_summary_of_several_files_counts_a_repeated_run_once_and_refuses_a_different_one(tmp_path, capsys):

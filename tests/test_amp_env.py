@@ -290,3 +290,24 @@ def test_follow_scene_runs_on_one_torch_thread_and_gives_the_callers_back(monkey
     seen, after = threads_seen(monkeypatch, pedestrians, "_make",
                                lambda: pedestrians.follow_scene("lobby", 2, seconds=0.5, seed=0, pose_every=0))
     assert seen == [1] and after == 2
+
+
+def test_the_wall_strength_of_the_target_rollouts_is_a_config_field():
+    """``amp_wall_strength`` sets A_wall of the social-force target rollouts (None: the module's SFM_A_WALL);
+    softer walls let the targets pass nearer the walls."""
+    from navzoo.envs import amp_humans
+
+    clear = {}
+    for wall in (None, 0.3):
+        env = _raw(n_robots=0, n_humans=6, scene="doorway", amp_wall_strength=wall)
+        env.reset(seed=1)
+        assert env.amp.a_wall == (amp_humans.SFM_A_WALL if wall is None else 0.3)
+        assert env.amp.sfm.A_wall == env.amp.a_wall
+        paths = env.amp.paths.reshape(-1, 2)
+        clear[wall] = env.scene.clearance(paths)
+        env.close()
+    assert not np.array_equal(clear[None], clear[0.3])
+    assert np.quantile(clear[0.3], 0.05) < np.quantile(clear[None], 0.05)
+    for bad in (0, -0.3, float("nan"), float("inf"), True, "0.3"):
+        with pytest.raises(ValueError, match="amp_wall_strength"):
+            NavConfig(human_model="amp", dt=DT, amp_wall_strength=bad)

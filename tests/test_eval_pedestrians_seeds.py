@@ -142,6 +142,11 @@ def test_heldout_scenes_are_followed_with_their_own_people(monkeypatch, capsys):
     for bad, msg in (("lobby,atlantis", "atlantis"), ("", "no scene given")):
         with pytest.raises(ValueError, match=msg):
             pedestrians.expand_scenes(bad)
+    # result filters: 'protocol' also stands for the eight scenes, each name kept once
+    assert pedestrians.scene_names("protocol") == pedestrians.SCENES
+    assert pedestrians.scene_names("lobby,heldout,protocol") == ("lobby", *names, *pedestrians.SCENES[:-1])
+    with pytest.raises(ValueError, match="atlantis"):
+        pedestrians.scene_names("protocol,atlantis")
     monkeypatch.setattr(tracking, "track_clips", lambda **k: pytest.fail("tracked clips before checking the scenes"))
     from navzoo.cli import main
 

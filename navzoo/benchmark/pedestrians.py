@@ -72,6 +72,18 @@ def expand_scenes(names: Any) -> tuple[str, ...]:
     return scenes
 
 
+#: ``protocol`` in a result filter (:func:`scene_names`): the eight scenes of :data:`SCENES`.
+PROTOCOL = "protocol"
+
+
+def scene_names(names: Any) -> tuple[str, ...]:
+    """Scene names for filtering result files: as :func:`expand_scenes`, and ``protocol`` also stands for the eight
+    scenes of :data:`SCENES`; duplicates kept once, in order."""
+    items = [v.strip() for v in names.split(",")] if isinstance(names, str) else [str(v).strip() for v in names]
+    items = [s for item in items for s in (SCENES if item == PROTOCOL else [item])]
+    return tuple(dict.fromkeys(expand_scenes(items)))
+
+
 def people_per_scene(n_scenes: int, lo: int = 3, hi: int = 15) -> list[int]:
     """``lo`` .. ``hi`` pedestrians spread evenly over the scenes."""
     if n_scenes == 1:

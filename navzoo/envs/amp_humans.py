@@ -151,8 +151,9 @@ KEEP_APART = False
 PASS_MARGIN = True
 PASS_SPEED = 1.0  # m/s
 # The wall potential strength of the social-force target rollouts (SocialForceParams.A_wall, the kinematic
-# crowd's default 1.0). Kinematic crowds reach 15 % more goals over 18 scenes with 0.3 (docs/crowd_models.md,
-# "Softer walls"); an option for the physics rows until those are measured with it.
+# crowd's default 1.0), where NavConfig.amp_wall_strength is None. Kinematic crowds reach 15 % more goals over 18
+# scenes with 0.3 (docs/crowd_models.md, "Softer walls"); the physics rows gain 4-13 points per limit with it and
+# touch walls on about twice as many trips (docs/pedestrians.md, "Softer walls for the target rollouts").
 SFM_A_WALL = 1.0
 
 
@@ -341,8 +342,10 @@ class AmpHumans:
         self.lag_all = env.diffusion is not None or LAG_LIMIT_RULES  # every target held to LAG_LIMIT_S (progress_index)
         self.fallen = np.zeros(self.n, dtype=bool)
         self.stance = np.zeros(self.n)  # running mean of foot_split (STANCE_TAU_S), updated by task_reward
-        self.sfm = SocialForceParams(A_wall=SFM_A_WALL)
-        self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN, A_wall=SFM_A_WALL)
+        wall = env.config.amp_wall_strength
+        self.a_wall = float(SFM_A_WALL if wall is None else wall)  # A_wall of the target rollouts
+        self.sfm = SocialForceParams(A_wall=self.a_wall)
+        self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN, A_wall=self.a_wall)
         model = env.config.crowd_model
         self.orca = OrcaParams(right_bias=0.0, one_step_safety=False) if model == "orca_rvo2" else OrcaParams()
         self._index = {b: j for j, b in enumerate(self.ids)}
@@ -397,7 +400,7 @@ class AmpHumans:
             sf_rad, sf_params = env.radius[h], self.sfm_keep
         elif PASS_MARGIN:
             sf_rad, sf_params = env.radius[h], SocialForceParams(pass_margin=PLAN_MARGIN, pass_speed=PASS_SPEED,
-                                                                 A_wall=SFM_A_WALL)
+                                                                 A_wall=self.a_wall)
         else:
             sf_rad, sf_params = rad, self.sfm
         graded = GRADED_WALL_MARGIN and WALL_PLAN_MARGIN > 0.0 and env.config.crowd_model in ("sfm", "diffusion")

@@ -98,6 +98,11 @@ class NavConfig:
             ``info["reward/path_progress"]``). 0 (default) = the paper's reward, whose tracking term
             follows targets replanned from the body every ``amp_replan_seconds`` and so does not pay for
             reaching the goal (docs/pedestrians.md, "Run 26").
+        amp_wall_strength: ``human_model="amp"``: wall potential strength (``SocialForceParams.A_wall``) of the
+            social-force rollouts that make the bodies' target trajectories (social-force targets, and the rollouts
+            toward diffusion plans); None (default) = ``navzoo.envs.amp_humans.SFM_A_WALL`` (1.0, the kinematic
+            crowd's own). 0.3 lets the targets pass nearer walls: more goals, about twice the wall contacts
+            (docs/pedestrians.md, "Softer walls for the target rollouts").
         amp_stance_reward: ``human_model="amp"``: weight of a stance term added to the pedestrians' task
             reward: minus the excess over ``navzoo.agents.amp.features.STANCE_FREE_M`` (0.1 m) of the
             absolute running mean (time constant ``features.STANCE_TAU_S``, 1 s) of the right foot's fore-aft
@@ -177,6 +182,7 @@ class NavConfig:
     amp_replan_seconds: float = 2.0
     amp_progress_reward: float = 0.0
     amp_stance_reward: float = 0.0
+    amp_wall_strength: float | None = None
     time_limit: float | None = None
     goal_tolerance: float | None = None
     min_goal_distance: float = 3.0
@@ -229,6 +235,10 @@ class NavConfig:
         if (isinstance(self.amp_stance_reward, bool) or not isinstance(self.amp_stance_reward, int | float)
                 or not math.isfinite(self.amp_stance_reward) or self.amp_stance_reward < 0):
             raise bad("amp_stance_reward", "a finite number >= 0")
+        if self.amp_wall_strength is not None and (
+                isinstance(self.amp_wall_strength, bool) or not isinstance(self.amp_wall_strength, int | float)
+                or not math.isfinite(self.amp_wall_strength) or self.amp_wall_strength <= 0):
+            raise bad("amp_wall_strength", "None or a finite number > 0")
         if self.crowd_model not in CROWD_MODELS:
             raise bad("crowd_model", "'sfm', 'orca', 'orca_rvo2', 'diffusion' or 'replay'")
         self._validate_replay()
