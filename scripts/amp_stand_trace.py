@@ -1,7 +1,7 @@
 """Where and why do physics pedestrians stand? One scene of the following protocol, traced.
 
     python scripts/amp_stand_trace.py --scene home --people 5 --crowd diffusion --seconds 200 --seed 0 \
-        [--diffusion-set K=V,...] --out F.json [--plot F.png]
+        [--diffusion-set K=V,...] [--set KEY=VALUE ...] --out F.json [--plot F.png]
 
 Runs one scene as ``navzoo eval pedestrians`` does (``navzoo.benchmark.pedestrians._make``: the shipped AMP
 policy, today's target settings, no robot) and samples every ``--every`` s each standing (not fallen) person:
@@ -18,7 +18,10 @@ than ``--still`` m/s is *standing*, and each standing sample gets one cause, fir
 
 Each class is split by where it happens: ``narrow`` where the clearance is below 0.6 m (doors, gaps between
 furniture, beside a wall), ``open`` elsewhere. ``--plot`` draws the scene with every standing sample coloured by
-cause. A diagnostic: the counts depend on the seed, and it says where person-time goes, not why a policy acts.
+cause. ``--set`` gives NavConfig fields to the run (e.g. ``amp_wall_strength=0.3``, as ``navzoo eval pedestrians
+--set``). The summary's ``walls`` splits the wall contacts of all samples (walking or standing) by whether another
+person is within ``PASSING_M`` (1.5 m): contacts while people pass or queue, against contacts of a person alone
+(along a wall, round a corner). A diagnostic: the counts depend on the seed, and it says where person-time goes, not why a policy acts.
 """
 
 from __future__ import annotations
@@ -34,16 +37,18 @@ CAUSES = ("target stands", "wall contact", "person near", "held, no contact")
 NEAR_TARGET_M = 0.4
 NEAR_PERSON_M = 0.9
 NARROW_M = 0.6
+PASSING_M = 1.5
 
 
 def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, every: float, still: float,
-          policy_dir: str | None = None, diffusion_settings: dict | None = None) -> dict:
+          policy_dir: str | None = None, diffusion_settings: dict | None = None,
+          env_overrides: dict | None = None) -> dict:
     from navzoo.benchmark import pedestrians as P
     from navzoo.benchmark.matched_realism import diffusion_settings_for_new_crowds
     from navzoo.torch_threads import one_torch_thread
 
     with one_torch_thread(), diffusion_settings_for_new_crowds(diffusion_settings):
-        wrapped, env = P._make(scene, people, "amp", seconds, seed, policy_dir, crowd)
+        wrapped, env = P._make(scene, people, "amp", seconds, seed, policy_dir, crowd, env_overrides)
         h = np.arange(env.n_robots, env.n_total)
         k_every = max(int(round(every / env.config.dt)), 1)
         dt_s = k_every * env.config.dt
@@ -80,6 +85,7 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, every:
         s["cause"] = classify(s, still) if s["speed"] < still else None
         s["narrow"] = s["clearance"] < NARROW_M
     return {"scene": scene, "people": people, "crowd": crowd, "diffusion_settings": diffusion_settings or {},
+            "env_overrides": env_overrides or {},
             "seconds": seconds, "seed": seed, "every_s": dt_s,
             "still_mps": still, "goals": goals, "wall_s": round(time.time() - t0, 1), "samples": samples,
             "summary": summarize(samples)}
@@ -108,6 +114,11 @@ def summarize(samples: list[dict]) -> dict:
             "narrow": sum(s["narrow"] for s in these) / n if n else 0.0,
             "open": sum(not s["narrow"] for s in these) / n if n else 0.0,
         }
+    wall = [s for s in samples if s["wall"]]
+    passing = [s for s in wall if s["nearest_m"] < PASSING_M]
+    out["walls"] = {"contact_share": len(wall) / n if n else 0.0,
+                    "passing": len(passing) / n if n else 0.0, "alone": (len(wall) - len(passing)) / n if n else 0.0,
+                    "standing": sum(s["cause"] is not None for s in wall) / n if n else 0.0}
     return out
 
 
@@ -148,19 +159,23 @@ def main() -> None:
     ap.add_argument("--policy", default=None, help="exported AMP policy directory (default: the shipped one)")
     ap.add_argument("--diffusion-set", default="", metavar="K=V,...",
                     help="diffusion crowd settings (names as in `navzoo eval crowd-matched --diffusion-set`)")
+    ap.add_argument("--set", dest="env_set", action="append", default=[], metavar="KEY=VALUE",
+                    help="NavConfig field for the run, repeatable (e.g. --set amp_wall_strength=0.3)")
     ap.add_argument("--out", required=True, help="JSON result (samples and summary)")
     ap.add_argument("--plot", default=None, help="PNG top view of the standing samples")
     args = ap.parse_args()
     if args.people < 1 or args.seconds <= 0 or args.every <= 0 or args.still <= 0:
         ap.error("--people, --seconds, --every and --still must be positive")
     from navzoo.benchmark.matched_realism import _settings, check_diffusion_settings
+    from navzoo.benchmark.pedestrians import check_env_overrides, env_set_option
 
     try:
         settings = check_diffusion_settings(_settings(args.diffusion_set))
+        overrides = check_env_overrides(env_set_option("amp_stand_trace.py", args.env_set))
     except ValueError as e:
         ap.error(str(e))
     result = trace(args.scene, args.people, args.crowd, args.seconds, args.seed, args.every, args.still, args.policy,
-                   settings)
+                   settings, overrides)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(result) + "\n")
     print(json.dumps({k: v for k, v in result.items() if k != "samples"}, indent=1))

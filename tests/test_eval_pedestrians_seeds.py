@@ -169,3 +169,41 @@ def test_heldout_scenes_are_followed_with_their_own_people(monkeypatch, capsys):
     with pytest.raises(Stop):
         pedestrians.evaluate(scenes="heldout", with_throughput=False)
     assert seen["scenes"] == names
+
+
+def test_set_passes_navconfig_fields_to_the_following_runs_and_refuses_bad_ones(tmp_path, monkeypatch, capsys):
+    """``navzoo eval pedestrians --set KEY=VALUE``: NavConfig fields for every following run (recorded in the
+    resume file's settings); unknown fields, fields the protocol sets and refused values are errors before any
+    clip is tracked."""
+    import navzoo.agents.amp.tracking as tracking
+    from navzoo.cli import main
+
+    monkeypatch.setattr(tracking, "track_clips", lambda **k: pytest.fail("tracked clips before checking --set"))
+    for args, msg in ((["--set", "amp_wall_strenght=0.3"], "unknown NavConfig field"),
+                      (["--set", "n_humans=4"], "set by the following protocol"),
+                      (["--set", "amp_wall_strength=-1"], "amp_wall_strength"),
+                      (["--set", "amp_wall_strength"], "KEY=VALUE"),
+                      (["--set", "amp_wall_strength=0.3", "--set", "amp_wall_strength=0.5"], "given twice")):
+        assert main(["eval", "pedestrians", "--no-throughput", *args]) == 2
+        assert msg in capsys.readouterr().err
+    assert pedestrians.env_set_option("x", ["amp_wall_strength=0.3", "human_yielding=false"]) == {
+        "amp_wall_strength": 0.3, "human_yielding": False}
+
+    seen = []
+    real_make = pedestrians._make
+
+    def spy(*a, **k):
+        wrapped, env = real_make(*a, **k)
+        seen.append(env.amp.a_wall)
+        return wrapped, env
+
+    monkeypatch.setattr(pedestrians, "_make", spy)
+    kw = dict(scenes=("station",), seconds=2.0, people=[3])
+    resume = tmp_path / "f.following.jsonl"
+    pedestrians.following(env_overrides={"amp_wall_strength": 0.3}, resume=resume, **kw)
+    pedestrians.following(**kw)
+    from navzoo.envs.amp_humans import SFM_A_WALL
+
+    assert seen == [0.3, SFM_A_WALL]
+    with pytest.raises(ValueError, match="other settings \\(env_overrides\\)"):
+        pedestrians.following(resume=resume, **kw)

@@ -35,10 +35,21 @@ def test_summary_shares_split_into_narrow_and_open():
     ts = s["causes"]["target stands"]
     assert ts["share_of_person_time"] == pytest.approx(0.5) and ts["narrow"] == ts["open"] == pytest.approx(0.25)
     assert s["causes"]["wall contact"]["share_of_person_time"] == 0.0
+    assert s["walls"] == {"contact_share": 0.0, "passing": 0.0, "alone": 0.0, "standing": 0.0}
+
+
+def test_wall_contacts_split_by_a_person_within_passing_range():
+    samples = [dict(_sample(wall=True, nearest_m=0.8), cause=None, narrow=True),         # passing, walking
+               dict(_sample(wall=True, nearest_m=st.PASSING_M + 0.1), cause=None, narrow=True),  # alone
+               dict(_sample(wall=True, nearest_m=1.0), cause="wall contact", narrow=True),  # queued against the wall
+               dict(_sample(), cause=None, narrow=False)]
+    w = st.summarize(samples)["walls"]
+    assert w == {"contact_share": 0.75, "passing": 0.5, "alone": 0.25, "standing": 0.25}
 
 
 def test_a_short_trace_of_physics_pedestrians(tmp_path):
-    r = st.trace("corridor", 2, "sfm", 2.0, 0, 0.5, 0.15)
+    r = st.trace("corridor", 2, "sfm", 2.0, 0, 0.5, 0.15, env_overrides={"amp_wall_strength": 0.3})
+    assert r["env_overrides"] == {"amp_wall_strength": 0.3}
     assert r["samples"] and {s["id"] for s in r["samples"]} == {0, 1}
     assert len(r["samples"]) == 2 * 4  # two people, every 0.5 s of 2 s
     total = sum(c["share_of_person_time"] for c in r["summary"]["causes"].values())

@@ -111,6 +111,29 @@ def _make(scene: str, n: int, human_model: str, seconds: float, seed: int, polic
     return wrapped, env
 
 
+#: NavConfig fields the following protocol sets itself (:func:`_make`), not open to ``env_overrides``.
+PROTOCOL_FIELDS = ("scene", "n_robots", "n_humans", "human_model", "dt", "crowd_model", "time_limit")
+
+
+def check_env_overrides(overrides: dict[str, Any] | None) -> dict[str, Any]:
+    """``overrides`` (NavConfig fields for the following runs) checked before any run: a ValueError names a field
+    NavConfig lacks, a field the protocol sets itself (:data:`PROTOCOL_FIELDS`) or a value NavConfig refuses."""
+    import dataclasses
+
+    from navzoo.envs.config import NavConfig
+
+    out = dict(overrides or {})
+    known = {f.name for f in dataclasses.fields(NavConfig)}
+    unknown = sorted(k for k in out if k not in known)
+    if unknown:
+        raise ValueError(f"unknown NavConfig field(s) {unknown}")
+    fixed = sorted(k for k in out if k in PROTOCOL_FIELDS)
+    if fixed:
+        raise ValueError(f"{fixed} are set by the following protocol itself, not by --set")
+    NavConfig(human_model="amp", dt=DT, **out)  # a refused value raises its own ValueError, naming the field
+    return out
+
+
 def body_keypoints(client: int, ids: list[int]) -> np.ndarray:
     """(H, 15, 3) link frame origins (joint centres) of humanoid bodies, read from PyBullet, in the
     order of :data:`navzoo.benchmark.realism.KEYPOINT_NAMES` (works for kinematic and physics bodies)."""
@@ -384,7 +407,8 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
               seeds: list[int] | None = None,
               resume: str | Path | None = None,
               walked: bool = False,
-              real_kin: dict[str, np.ndarray] | None = None) -> tuple[dict[str, Any], np.ndarray]:
+              real_kin: dict[str, np.ndarray] | None = None,
+              env_overrides: dict[str, Any] | None = None) -> tuple[dict[str, Any], np.ndarray]:
     """Trip outcomes of AMP pedestrians in ``scenes`` (3-15 people, one process per scene with
     ``workers`` > 1); returns (metrics, poses (M, 45) of the standing pedestrians, for realism).
 
@@ -404,6 +428,9 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
     ``<resume>.poses/``). Rerun with the same settings, the runs found there are not run again; a file
     of other settings is refused. :func:`evaluate` uses ``<out>.following.jsonl`` and removes it when done.
 
+    ``env_overrides``: further NavConfig fields for every run (:func:`check_env_overrides`; e.g.
+    ``{"amp_wall_strength": 0.3}``); a resumed run must have the same.
+
     ``walked=True`` adds ``metrics["walked"]``: how the people walked, from their centres at every step (a fallen
     body's track ends at its fall), pooled over all runs, in the terms of the crowd realism
     (:mod:`navzoo.benchmark.crowd_eval`): speed, acceleration and jerk means and medians at 0.4 s, with the
@@ -419,9 +446,12 @@ def following(scenes: tuple[str, ...] = SCENES, seconds: float = 200.0, seed: in
     if len(counts) != len(scenes):
         raise ValueError(f"need one people count per scene, got {len(counts)} for {len(scenes)} scenes")
     run_seeds = [seed] if seeds is None else check_seeds(seeds)
-    jobs = [(sc, n, seconds, sd, policy_dir, pose_every if k == 0 else 0, 20_000, crowd_model, human_model)
+    overrides = check_env_overrides(env_overrides) or None
+    jobs = [(sc, n, seconds, sd, policy_dir, pose_every if k == 0 else 0, 20_000, crowd_model, human_model, overrides)
             for k, sd in enumerate(run_seeds) for sc, n in zip(scenes, counts, strict=True)]
     settings = _settings(scenes, counts, seconds, run_seeds, policy_dir, crowd_model, human_model, pose_every)
+    if overrides:  # runs without overrides keep the settings line of older files
+        settings["env_overrides"] = overrides
     rows = _run_jobs(jobs, workers, resume, settings if seeds is None else settings | {"multi_seed": True})
     if seeds is None:
         metrics = _following_metrics(rows, seconds)
@@ -691,7 +721,7 @@ def record_video(path: str | Path, scene: str = "lobby", n: int = 12, seconds: f
 def evaluate(quick: bool = False, motions: str | None = None, policy_dir: str | None = None, seed: int = 0,
              video: str | None = None, with_throughput: bool = True, workers: int = 1,
              seeds: list[int] | None = None, out_file: str | Path | None = None,
-             scenes: Any = None) -> dict[str, Any]:
+             scenes: Any = None, env_overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """All four measurements (module docstring). ``seeds`` runs the following protocol once per seed
     (:func:`following`); realism then uses the first seed, as ``seed`` does otherwise. With ``out_file``
     (the CLI's ``--out``) the result is written there, and until then the following runs are kept in
@@ -706,8 +736,9 @@ def evaluate(quick: bool = False, motions: str | None = None, policy_dir: str | 
         seed = seeds[0]
 
     t0 = time.time()
+    overrides = check_env_overrides(env_overrides)  # before the minutes of clip tracking
     if scenes is not None:
-        scenes = expand_scenes(scenes)  # before the minutes of clip tracking
+        scenes = expand_scenes(scenes)
     else:
         scenes = ("lobby", "corridor") if quick else SCENES
     seconds = 20.0 if quick else 200.0
@@ -717,7 +748,8 @@ def evaluate(quick: bool = False, motions: str | None = None, policy_dir: str | 
     tracking = {k: track[k] for k in ("mean_pos_error_m", "max_pos_error_m", "mean_rot_error_rad", "clip_success_rate",
                                       "worst_pos_error_m", "fall_rate", "n_clips")}
     resume = Path(str(out_file) + ".following.jsonl") if out_file else None
-    follow, amp_poses = following(scenes, seconds, seed, policy_dir, workers=workers, seeds=seeds, resume=resume)
+    follow, amp_poses = following(scenes, seconds, seed, policy_dir, workers=workers, seeds=seeds, resume=resume,
+                                  env_overrides=overrides)
     ref = realism.RealismReference.fit(realism.clip_poses(lib), seed=seed)
     kin_poses = kinematic_poses(scenes, seconds, seed, workers=workers)
     keys = ("coverage_k50", "entropy_k50", "dist_k50", "coverage_k100", "entropy_k100", "dist_k100", "mmd")
@@ -734,6 +766,8 @@ def evaluate(quick: bool = False, motions: str | None = None, policy_dir: str | 
         out["throughput"] = throughput((1, 4, 16) if quick else (1, 2, 4, 8, 16, 32, 64), policy_dir=policy_dir)
     if video:
         out["video"] = str(record_video(video, policy_dir=policy_dir, seconds=6.0 if quick else 12.0))
+    if overrides:
+        out["env_overrides"] = overrides  # of the following runs only
     out["quick"] = quick
     out["wall_s"] = round(time.time() - t0, 1)
     if out_file:
@@ -818,6 +852,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenes", default=None,
                         help="scenes of the following runs, comma-separated (default the protocol's 8; quick: "
                              "lobby,corridor); 'heldout': the 10 library scenes no setting was chosen on")
+    parser.add_argument("--set", dest="env_set", action="append", default=[], metavar="KEY=VALUE",
+                        help="NavConfig field for the following runs, repeatable (e.g. --set amp_wall_strength=0.3; "
+                             "values read as YAML); the realism crowd, throughput and video keep the defaults")
     parser.add_argument("--video", default=None, help="also write an mp4 of an AMP crowd here")
     parser.add_argument("--no-throughput", action="store_true")
     parser.add_argument("--workers", type=int, default=1, help="processes for the scenes of the following run")
@@ -829,13 +866,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="print Markdown tables of an earlier result (--out file) and exit")
 
 
+def env_set_option(command: str, items: list[str]) -> dict[str, Any]:
+    """``--set KEY=VALUE`` items as NavConfig overrides (values read as YAML: ``0.3``, ``true``, ``orca``); an item
+    without ``=`` or a key given twice is a ValueError naming it."""
+    import yaml
+
+    out: dict[str, Any] = {}
+    for item in items:
+        if "=" not in item:
+            raise ValueError(f"{command}: --set needs KEY=VALUE (a NavConfig field), got {item!r}")
+        key, value = (x.strip() for x in item.split("=", 1))
+        if key in out:
+            raise ValueError(f"{command}: --set {key} given twice")
+        out[key] = yaml.safe_load(value)
+    return out
+
+
 def run_cli(args: argparse.Namespace) -> int:
     if args.markdown:
         print(markdown(json.loads(Path(args.markdown).read_text())))
         return 0
     seeds = seeds_option("navzoo eval pedestrians", args.seed, args.seeds)
+    overrides = env_set_option("navzoo eval pedestrians", args.env_set)
     result = evaluate(args.quick, args.motions, args.policy, 0 if args.seed is None else args.seed, args.video,
-                      not args.no_throughput, args.workers, seeds=seeds, out_file=args.out, scenes=args.scenes)
+                      not args.no_throughput, args.workers, seeds=seeds, out_file=args.out, scenes=args.scenes,
+                      env_overrides=overrides)
     print(json.dumps(result, indent=None if args.json else 2, default=float))  # evaluate wrote --out
     return 0
 
