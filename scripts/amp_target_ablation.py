@@ -297,8 +297,11 @@ def summary(path: str | list[str], by_scene: bool = False, pooled: bool = False,
     ``by_scene`` one line per configuration, crowd model and scene, pooling the seeds, or with ``pooled``
     one line per configuration and crowd model, pooling seeds and scenes (trips counted together, not
     rates averaged); ``seeds`` keeps only those seeds' rows. Where the rows hold them, a second line counts
-    the same runs one trip per goal (``pedestrians.Trips``). ``scenes`` keeps only those scenes' rows (the
+    the same runs one trip per goal (``pedestrians.Trips``). The last column is the share of the standing people's
+    time in wall / people contact (rows that count it, ``contact_steps``; else n/a). ``scenes`` keeps only those scenes' rows (the
     labels count the scenes found; a ValueError when none is)."""
+    import numpy as np
+
     from navzoo.benchmark.pedestrians import goal_trip_rates
 
     if by_scene and pooled:
@@ -315,8 +318,9 @@ def summary(path: str | list[str], by_scene: bool = False, pooled: bool = False,
         if not rows:
             raise ValueError(f"no rows of scene(s) {', '.join(scenes)} in the result files")
     keys = ("success", "off_path", "fall", "timeout")
-    lines = ["| configuration | trips | success | off path | fall | timeout | map contact | agent contact | path error (m) |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| configuration | trips | success | off path | fall | timeout | map contact | agent contact | path error (m) "
+             "| wall / people contact time |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
 
     def group(r: dict) -> tuple:
         g = _group(r)
@@ -342,14 +346,20 @@ def summary(path: str | list[str], by_scene: bool = False, pooled: bool = False,
         err_n = sum(r["err_n"] for r in rs)  # 0: no target trajectory (kinematic bodies of a rule-based crowd)
         err = f"{sum(r['err_sum'] for r in rs) / err_n:.3f}" if err_n else "n/a"
         share = {k: sum(r[k] for r in rs) / max(1, n) for k in (*keys, "map_trips", "agent_trips")}
+        # share of the standing people's time in contact (rows since 2026-12-04 count it: contact_steps)
+        if all("contact_steps" in r for r in rs):
+            c = np.sum([r["contact_steps"] for r in rs], axis=0)
+            times = f"{c[0] / max(c[2], 1):.4f} / {c[1] / max(c[2], 1):.4f}"
+        else:
+            times = "n/a"
         lines.append(f"| {label} | {n} | {share['success']:.3f} | {share['off_path']:.3f} | "
                      f"{share['fall']:.3f} | {share['timeout']:.3f} | {share['map_trips']:.3f} | "
-                     f"{share['agent_trips']:.3f} | {err} |")
+                     f"{share['agent_trips']:.3f} | {err} | {times} |")
         if all("by_goal" in r for r in rs):  # the same runs, one trip per goal (pedestrians.Trips)
             g = goal_trip_rates([r["by_goal"] for r in rs])
             lines.append(f"| {label}, one trip per goal | {g['trips']} | {g['success_rate']:.3f} | "
                          f"{g['goal_rate'] - g['success_rate']:.3f} | {g['fall_rate']:.3f} | {g['timeout_rate']:.3f} | "
-                         f"{g['map_collision_rate']:.3f} | {g['agent_collision_rate']:.3f} | |")
+                         f"{g['map_collision_rate']:.3f} | {g['agent_collision_rate']:.3f} | | |")
     return "\n".join(lines)
 
 

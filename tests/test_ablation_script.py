@@ -216,6 +216,12 @@ def test_the_pooled_summary_counts_trips_over_seeds_and_scenes(tmp_path, capsys)
     with pytest.raises(SystemExit):
         ablation.main(["--summary", str(path), "--summary-scenes", "heldout"])
     assert "l_corridor" in capsys.readouterr().err
+    # the contact-time column: n/a for rows without contact_steps, else the pooled shares of standing time
+    assert table[2].endswith("| n/a |")
+    timed = [_row(cfg, "lobby", 0, success=3, pedestrians=15, contact_steps=[10, 30, 1000]),
+             _row(cfg, "home", 1, success=1, pedestrians=5, contact_steps=[30, 10, 1000])]
+    path.write_text("".join(json.dumps(r) + "\n" for r in timed))
+    assert ablation.summary(str(path), pooled=True).splitlines()[2].endswith("| 0.0200 / 0.0200 |")
 
 
 def test_a_summary_of_several_files_counts_a_repeated_run_once_and_refuses_a_different_one(tmp_path, capsys):

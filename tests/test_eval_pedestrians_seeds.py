@@ -207,3 +207,11 @@ def test_set_passes_navconfig_fields_to_the_following_runs_and_refuses_bad_ones(
     assert seen == [0.3, SFM_A_WALL]
     with pytest.raises(ValueError, match="other settings \\(env_overrides\\)"):
         pedestrians.following(resume=resume, **kw)
+
+
+def test_scene_runs_count_the_person_time_in_contact():
+    """``contact_steps``: person-steps of standing people in wall contact, in people contact, and in all."""
+    row = pedestrians.follow_scene("doorway", 4, 3.0, 0)
+    wall, people, standing = row["contact_steps"]
+    assert standing == 4 * 90  # 4 people standing for 3 s at 30 Hz (no fall this early)
+    assert 0 <= wall <= standing and 0 <= people <= standing

@@ -320,6 +320,7 @@ def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str
     poses: list[np.ndarray] = []
     walk = [env.pos[h].copy()]  # the walked centres, NaN once a body has fallen
     n_poses = steps = 0
+    contact_steps = np.zeros(3, dtype=np.int64)  # person-steps in wall contact, in people contact, standing
     while not env._needs_reset:
         wrapped.step({})
         steps += 1
@@ -333,6 +334,7 @@ def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str
         m_goal |= map_now & live
         a_goal |= agent_now & live
         standing = live & ~fallen
+        contact_steps += (int((map_now & standing).sum()), int((agent_now & standing).sum()), int(standing.sum()))
         walk.append(np.where(fallen[:, None], np.nan, env.pos[h]))
         target = target_points(env) if has_target else None
         err = None
@@ -365,7 +367,7 @@ def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str
     return {
         "scene": scene, "pedestrians": n, **ended, "map_trips": map_trips, "agent_trips": agent_trips,
         "err_sum": err_sum, "err_n": err_n, "path_error": has_target, "running": int((~done).sum()),
-        "by_goal": by_goal, "walk_collisions": list(walk_hits),
+        "by_goal": by_goal, "walk_collisions": list(walk_hits), "contact_steps": [int(c) for c in contact_steps],
         "wall_s": round(time.time() - t0, 1),
         "poses": np.concatenate(poses) if poses else np.zeros((0, realism.POSE_DIM)),
         "walk_kin": walk_kin,
