@@ -2,6 +2,7 @@
 
     python scripts/amp_stand_trace.py --scene home --people 5 --crowd diffusion --seconds 200 --seed 0 \
         [--diffusion-set K=V,...] [--set KEY=VALUE ...] --out F.json [--plot F.png]
+    python scripts/amp_stand_trace.py --plot-contacts A.json B.json --out F.png
 
 Runs one scene as ``navzoo eval pedestrians`` does (``navzoo.benchmark.pedestrians._make``: the shipped AMP
 policy, today's target settings, no robot) and samples every ``--every`` s each standing (not fallen) person:
@@ -147,6 +148,33 @@ def plot(result: dict, out: str) -> None:
     ax.figure.savefig(out, dpi=110)
 
 
+def plot_contacts(results: list[dict], out: str) -> None:
+    """Top views side by side, one per trace (e.g. two settings of one scene): every sample green, the samples in
+    wall contact red (walking) or black (standing)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from navzoo.world.library import get_scene
+    from navzoo.world.plot import plot_scene
+
+    fig, axes = plt.subplots(1, len(results), figsize=(6 * len(results), 5), squeeze=False)
+    for ax, r in zip(axes[0], results, strict=True):
+        what = ", ".join(f"{k} {v}" for k, v in r.get("env_overrides", {}).items()) or "defaults"
+        plot_scene(get_scene(r["scene"]), ax=ax, show_regions=False, show_waypoints=False,
+                   title=f"{r['scene']}, {r['crowd']} targets, seed {r['seed']}: {what}")
+        s = r["samples"]
+        ax.scatter([x["x"] for x in s], [x["y"] for x in s], s=1, c="#2ca02c", alpha=0.15)
+        w = [x for x in s if x["wall"]]
+        ax.scatter([x["x"] for x in w], [x["y"] for x in w], s=12,
+                   c=["#d62728" if x["cause"] is None else "k" for x in w],
+                   label=f"wall contact, {r['summary']['walls']['contact_share']:.2%} of person-time")
+        ax.legend(loc="upper left", fontsize=7, framealpha=0.9)
+    fig.tight_layout()
+    fig.savefig(out, dpi=80)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scene", default="home")
@@ -163,7 +191,12 @@ def main() -> None:
                     help="NavConfig field for the run, repeatable (e.g. --set amp_wall_strength=0.3)")
     ap.add_argument("--out", required=True, help="JSON result (samples and summary)")
     ap.add_argument("--plot", default=None, help="PNG top view of the standing samples")
+    ap.add_argument("--plot-contacts", nargs="+", default=None, metavar="TRACE.json",
+                    help="only draw the wall contacts of earlier traces (--out files), side by side, into --out (PNG)")
     args = ap.parse_args()
+    if args.plot_contacts:
+        plot_contacts([json.loads(Path(f).read_text()) for f in args.plot_contacts], args.out)
+        return
     if args.people < 1 or args.seconds <= 0 or args.every <= 0 or args.still <= 0:
         ap.error("--people, --seconds, --every and --still must be positive")
     from navzoo.benchmark.matched_realism import _settings, check_diffusion_settings

@@ -57,3 +57,5 @@ def test_a_short_trace_of_physics_pedestrians(tmp_path):
     assert all((s["cause"] is None) == (s["speed"] >= 0.15) for s in r["samples"])
     st.plot(r, str(tmp_path / "t.png"))
     assert (tmp_path / "t.png").stat().st_size > 1000
+    st.plot_contacts([r, r], str(tmp_path / "c.png"))
+    assert (tmp_path / "c.png").stat().st_size > 1000
