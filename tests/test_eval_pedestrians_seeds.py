@@ -215,3 +215,8 @@ def test_scene_runs_count_the_person_time_in_contact():
     wall, people, standing = row["contact_steps"]
     assert standing == 4 * 90  # 4 people standing for 3 s at 30 Hz (no fall this early)
     assert 0 <= wall <= standing and 0 <= people <= standing
+    m = pedestrians._following_metrics([row, row | {"contact_steps": [wall + 10, people, standing + 40]}], 3.0)
+    assert m["map_contact_time"] == pytest.approx((2 * wall + 10) / (2 * standing + 40))
+    assert m["agent_contact_time"] == pytest.approx(2 * people / (2 * standing + 40))
+    old = {k: v for k, v in row.items() if k != "contact_steps"}  # a row resumed from an older file
+    assert pedestrians._following_metrics([row, old], 3.0)["map_contact_time"] is None

@@ -623,6 +623,8 @@ def _following_metrics(rows: list[dict[str, Any]], seconds: float) -> dict[str, 
     """Trip rates pooled over ``rows`` of :func:`follow_scene`."""
     n_trips = sum(r["success"] + r["off_path"] + r["fall"] + r["timeout"] for r in rows)
     total = max(1, n_trips)
+    timed = all("contact_steps" in r for r in rows)  # runs resumed from files before 2026-12-04 lack them
+    steps = np.sum([r["contact_steps"] for r in rows], axis=0) if timed and rows else None
     return {
         "success_rate": sum(r["success"] for r in rows) / total,
         "goal_rate": sum(r["success"] + r["off_path"] for r in rows) / total,
@@ -632,12 +634,16 @@ def _following_metrics(rows: list[dict[str, Any]], seconds: float) -> dict[str, 
         "path_error_m": (sum(r["err_sum"] for r in rows) / max(1, sum(r["err_n"] for r in rows))
                          if any(r["path_error"] for r in rows) else None),
         "timeout_rate": sum(r["timeout"] for r in rows) / total,
+        # shares of the standing people's time in contact with the scene / with other people (None: not counted)
+        "map_contact_time": None if steps is None else float(steps[0] / max(steps[2], 1)),
+        "agent_contact_time": None if steps is None else float(steps[1] / max(steps[2], 1)),
         "trips": n_trips,
         "trips_running": sum(r["running"] for r in rows),
         "per_goal": goal_trip_rates([r["by_goal"] for r in rows]) if all("by_goal" in r for r in rows) else None,
         "seconds_per_scene": seconds,
         "scenes": [{k: r[k] for k in ("seed", "scene", "pedestrians", "success", "off_path", "fall", "timeout",
-                                      "map_trips", "agent_trips", "by_goal", "wall_s") if k in r} for r in rows],
+                                      "map_trips", "agent_trips", "by_goal", "contact_steps", "wall_s") if k in r}
+                   for r in rows],
     }
 
 
