@@ -308,6 +308,9 @@ def test_the_wall_strength_of_the_target_rollouts_is_a_config_field():
         env.close()
     assert not np.array_equal(clear[None], clear[0.3])
     assert np.quantile(clear[0.3], 0.05) < np.quantile(clear[None], 0.05)
+    env = _raw(n_robots=0, n_humans=2, scene="doorway")
+    assert env.amp.sfm.wall_near_range == amp_humans.SFM_WALL_NEAR_RANGE  # the passing-only softness: module option
+    env.close()
     for bad in (0, -0.3, float("nan"), float("inf"), True, "0.3"):
         with pytest.raises(ValueError, match="amp_wall_strength"):
             NavConfig(human_model="amp", dt=DT, amp_wall_strength=bad)

@@ -21,7 +21,7 @@ same inputs always give the same outputs.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -92,6 +92,11 @@ class SocialForceParams:
             navzoo choice, for the target rollouts of physics pedestrians (``navzoo.envs.amp_humans``
             ``PASS_MARGIN``), whose swinging limbs catch when they pass each other close.
         pass_speed: Relative speed (m/s) at which the full ``pass_margin`` applies. navzoo choice: 1.0.
+        wall_near_range: With > 0, a person who has another person within this distance (m, centre to centre)
+            feels the walls with ``A_wall_near`` instead of ``A_wall``: softer walls only where people meet,
+            queue or pass one another, the full walls for a person alone (at corners, along walls). 0 = off
+            (the default).
+        A_wall_near: Wall potential strength for people within ``wall_near_range`` of another person.
     """
 
     tau: float = 0.5
@@ -109,10 +114,13 @@ class SocialForceParams:
     keep_range: float = 0.05
     pass_margin: float = 0.0
     pass_speed: float = 1.0
+    wall_near_range: float = 0.0
+    A_wall_near: float = 1.0
 
     def __post_init__(self) -> None:
         positive = ("tau", "B", "B_wall", "neighbor_dist", "max_accel", "max_substep", "keep_range", "pass_speed")
-        non_negative = ("A", "A_wall", "step_time", "side_bias", "keep_apart", "pass_margin")
+        non_negative = ("A", "A_wall", "step_time", "side_bias", "keep_apart", "pass_margin", "wall_near_range",
+                        "A_wall_near")
         for f in fields(self):
             value = getattr(self, f.name)
             if not np.isfinite(value):
@@ -386,6 +394,12 @@ def social_forces(
         raise ValueError(f"segment_groups must have shape ({seg.shape[0]},), got {groups.shape}")
     w_rad = radius if wall_radius is None else _scalars("wall_radius", wall_radius, n)
     walls = _wall_forces(pos, w_rad, seg, params, groups)
+    if params.wall_near_range > 0.0 and n > 1 and seg.shape[0]:
+        gap = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=2)
+        np.fill_diagonal(gap, np.inf)
+        near = gap.min(axis=1) < params.wall_near_range
+        if near.any():  # softer (or harder) walls for people who meet, queue or pass another
+            walls[near] = _wall_forces(pos[near], w_rad[near], seg, replace(params, A_wall=params.A_wall_near), groups)
     return SocialForces(goal=goal, people=people, robots=robots, walls=walls)
 
 

@@ -155,6 +155,11 @@ PASS_SPEED = 1.0  # m/s
 # scenes with 0.3 (docs/crowd_models.md, "Softer walls"); the physics rows gain 4-13 points per limit with it and
 # touch walls on about twice as many trips (docs/pedestrians.md, "Softer walls for the target rollouts").
 SFM_A_WALL = 1.0
+# Softer walls only where people meet: with SFM_WALL_NEAR_RANGE > 0 (m), a person of the rollouts who has another
+# within that distance feels the walls with SFM_A_WALL_NEAR instead (SocialForceParams.wall_near_range). An option,
+# off (docs/pedestrians.md, "Softer walls for the target rollouts").
+SFM_WALL_NEAR_RANGE = 0.0
+SFM_A_WALL_NEAR = 0.3
 
 
 # Social force turns a disc toward a new direction as fast as its relaxation allows: at a trip's
@@ -344,8 +349,9 @@ class AmpHumans:
         self.stance = np.zeros(self.n)  # running mean of foot_split (STANCE_TAU_S), updated by task_reward
         wall = env.config.amp_wall_strength
         self.a_wall = float(SFM_A_WALL if wall is None else wall)  # A_wall of the target rollouts
-        self.sfm = SocialForceParams(A_wall=self.a_wall)
-        self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN, A_wall=self.a_wall)
+        self.walls = {"A_wall": self.a_wall, "wall_near_range": SFM_WALL_NEAR_RANGE, "A_wall_near": SFM_A_WALL_NEAR}
+        self.sfm = SocialForceParams(**self.walls)
+        self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN, **self.walls)
         model = env.config.crowd_model
         self.orca = OrcaParams(right_bias=0.0, one_step_safety=False) if model == "orca_rvo2" else OrcaParams()
         self._index = {b: j for j, b in enumerate(self.ids)}
@@ -400,7 +406,7 @@ class AmpHumans:
             sf_rad, sf_params = env.radius[h], self.sfm_keep
         elif PASS_MARGIN:
             sf_rad, sf_params = env.radius[h], SocialForceParams(pass_margin=PLAN_MARGIN, pass_speed=PASS_SPEED,
-                                                                 A_wall=self.a_wall)
+                                                                 **self.walls)
         else:
             sf_rad, sf_params = rad, self.sfm
         graded = GRADED_WALL_MARGIN and WALL_PLAN_MARGIN > 0.0 and env.config.crowd_model in ("sfm", "diffusion")

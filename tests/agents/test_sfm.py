@@ -235,3 +235,22 @@ def test_pass_margin_keeps_room_from_people_passed_not_from_people_walked_with()
          for r, prm in ((radius, PARAMS), (radius, passing), (radius + 0.05, PARAMS), (radius + 0.1, PARAMS))]
     assert f[0] < f[1] < f[3]
     np.testing.assert_allclose(f[1], f[2], rtol=1e-9)
+
+
+def test_walls_near_another_person_use_their_own_strength() -> None:
+    """``wall_near_range``: a person with another within range feels walls with ``A_wall_near``; one alone with
+    ``A_wall``; off (0) by default."""
+    from navzoo.agents.sfm import SocialForceParams, social_forces
+
+    wall = np.array([[[-5.0, 0.0], [5.0, 0.0]]])  # a wall along y = 0
+    pos = np.array([[0.0, 0.35], [0.8, 0.35], [4.0, 0.35]])  # two people 0.8 m apart, one alone, all 0.35 m off
+    vel = np.zeros((3, 2))
+    kw = dict(pos=pos, vel=vel, pref_vel=vel, radius=0.25, segments=wall)
+    full = social_forces(params=SocialForceParams(), **kw).walls
+    soft = social_forces(params=SocialForceParams(wall_near_range=1.5, A_wall_near=0.3), **kw).walls
+    np.testing.assert_allclose(soft[:2], 0.3 * full[:2])  # the pair: softer
+    np.testing.assert_allclose(soft[2], full[2])  # alone: the full wall
+    assert full[0, 1] > 0  # pushed off the wall
+    np.testing.assert_allclose(social_forces(params=SocialForceParams(A_wall_near=0.3), **kw).walls, full)  # off
+    with pytest.raises(ValueError, match="wall_near_range"):
+        SocialForceParams(wall_near_range=-1.0)
