@@ -157,7 +157,7 @@ PASS_SPEED = 1.0  # m/s
 SFM_A_WALL = 1.0
 # Softer walls only where people meet: with SFM_WALL_NEAR_RANGE > 0 (m), a person of the rollouts who has another
 # within that distance feels the walls with SFM_A_WALL_NEAR instead (SocialForceParams.wall_near_range). An option,
-# off (docs/pedestrians.md, "Softer walls for the target rollouts").
+# off (docs/pedestrians.md, "Softer walls only where people meet").
 SFM_WALL_NEAR_RANGE = 0.0
 SFM_A_WALL_NEAR = 0.3
 
