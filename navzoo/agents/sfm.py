@@ -393,13 +393,17 @@ def social_forces(
     if groups is not None and groups.shape != (seg.shape[0],):
         raise ValueError(f"segment_groups must have shape ({seg.shape[0]},), got {groups.shape}")
     w_rad = radius if wall_radius is None else _scalars("wall_radius", wall_radius, n)
-    walls = _wall_forces(pos, w_rad, seg, params, groups)
+    near = np.zeros(n, dtype=bool)
     if params.wall_near_range > 0.0 and n > 1 and seg.shape[0]:
         gap = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=2)
         np.fill_diagonal(gap, np.inf)
         near = gap.min(axis=1) < params.wall_near_range
-        if near.any():  # softer (or harder) walls for people who meet, queue or pass another
-            walls[near] = _wall_forces(pos[near], w_rad[near], seg, replace(params, A_wall=params.A_wall_near), groups)
+    if near.any():  # other walls for people who meet, queue or pass another; each person's walls computed once
+        walls = np.zeros((n, 2))
+        walls[~near] = _wall_forces(pos[~near], w_rad[~near], seg, params, groups)
+        walls[near] = _wall_forces(pos[near], w_rad[near], seg, replace(params, A_wall=params.A_wall_near), groups)
+    else:
+        walls = _wall_forces(pos, w_rad, seg, params, groups)
     return SocialForces(goal=goal, people=people, robots=robots, walls=walls)
 
 

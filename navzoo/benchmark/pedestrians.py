@@ -61,7 +61,7 @@ def expand_scenes(names: Any) -> tuple[str, ...]:
     Their people, spread 3-15 over the held-out scenes by :func:`people_per_scene`, are HELDOUT_SCENES' own counts."""
     from navzoo.world.library import list_scenes
 
-    items = [v.strip() for v in names.split(",")] if isinstance(names, str) else [str(v).strip() for v in names]
+    items = _name_items(names)
     held = [name for name, _ in HELDOUT_SCENES]
     scenes = tuple(s for item in items if item for s in (held if item == HELDOUT else [item]))
     known = list_scenes()
@@ -72,6 +72,11 @@ def expand_scenes(names: Any) -> tuple[str, ...]:
     return scenes
 
 
+def _name_items(names: Any) -> list[str]:
+    """A comma-separated string or a list of names, as stripped strings."""
+    return [v.strip() for v in names.split(",")] if isinstance(names, str) else [str(v).strip() for v in names]
+
+
 #: ``protocol`` in a result filter (:func:`scene_names`): the eight scenes of :data:`SCENES`.
 PROTOCOL = "protocol"
 
@@ -79,8 +84,7 @@ PROTOCOL = "protocol"
 def scene_names(names: Any) -> tuple[str, ...]:
     """Scene names for filtering result files: as :func:`expand_scenes`, and ``protocol`` also stands for the eight
     scenes of :data:`SCENES`; duplicates kept once, in order."""
-    items = [v.strip() for v in names.split(",")] if isinstance(names, str) else [str(v).strip() for v in names]
-    items = [s for item in items for s in (SCENES if item == PROTOCOL else [item])]
+    items = [s for item in _name_items(names) for s in (SCENES if item == PROTOCOL else [item])]
     return tuple(dict.fromkeys(expand_scenes(items)))
 
 
@@ -875,18 +879,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def env_set_option(command: str, items: list[str]) -> dict[str, Any]:
-    """``--set KEY=VALUE`` items as NavConfig overrides (values read as YAML: ``0.3``, ``true``, ``orca``); an item
-    without ``=`` or a key given twice is a ValueError naming it."""
-    import yaml
+    """``--set KEY=VALUE`` items as NavConfig overrides, parsed as ``navzoo train joint --set`` parses them (values
+    read as YAML: ``0.3``, ``true``, ``orca``); an item without ``=`` or a key given twice is a ValueError naming it."""
+    import argparse
+
+    from navzoo.rl.train import _key_value
 
     out: dict[str, Any] = {}
     for item in items:
-        if "=" not in item:
-            raise ValueError(f"{command}: --set needs KEY=VALUE (a NavConfig field), got {item!r}")
-        key, value = (x.strip() for x in item.split("=", 1))
+        try:
+            key, value = _key_value(item)
+        except argparse.ArgumentTypeError as exc:
+            raise ValueError(f"{command}: --set: {exc}") from None
         if key in out:
             raise ValueError(f"{command}: --set {key} given twice")
-        out[key] = yaml.safe_load(value)
+        out[key] = value
     return out
 
 
