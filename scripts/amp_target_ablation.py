@@ -11,7 +11,8 @@ social-force rollouts), ``WAYPOINT_LOOKAHEAD`` (0 = waypoints in strict order) a
 FALLEN = 1, ``NavConfig.human_fallen_obstacles`` (people plan around fallen bodies; 0 or left out = off);
 FALLEN may instead name boolean NavConfig flags to turn on, joined by ``+`` (e.g.
 ``human_door_entries+human_fallen_obstacles``), or set word-valued ones as ``name=value`` (e.g.
-``human_replan_blocked=off``). A seventh field TRIM sets the AMP policy's steering
+``human_replan_blocked=off``) and numeric ones the same way (e.g. ``amp_wall_strength=0.3``; values are read as
+``--set`` values are: JSON, else a word). A seventh field TRIM sets the AMP policy's steering
 trim in rad (``AmpPolicy.steering_trim``; left out = the policy's own, see ``navzoo train amp-trim``).
 An eighth field POLICY names an exported AMP policy directory (left out = the shipped one); an empty
 TRIM field keeps that policy's own trim. A ninth field ACCEL sets ``TARGET_ACCEL`` and ``DIFFUSION_TARGET_ACCEL`` (m/s², the
@@ -77,17 +78,17 @@ def parse_config(text: str) -> dict:
         raise ValueError(f"no exported AMP policy (config.json) in {cfg['policy']!r}, in {text!r}")
     flags = parts[5].strip() if len(parts) >= 6 else "0"
     cfg["env_flags"] = [] if flags == "0" else ["human_fallen_obstacles"] if flags == "1" else flags.split("+")
+    from navzoo.benchmark.pedestrians import check_env_overrides
     from navzoo.envs.config import NavConfig
 
     for flag in cfg["env_flags"]:
-        name, _, value = flag.partition("=")
-        default = getattr(NavConfig(), name, None)
-        if value and not isinstance(default, str):
-            raise ValueError(f"{name!r} is not a NavConfig field that takes a word, in {text!r}")
-        if not value and not isinstance(default, bool):
-            raise ValueError(f"{flag!r} is not a boolean NavConfig field, in {text!r}")
-        if value:
-            NavConfig(**{name: value})  # a value the field refuses is named here, before any run
+        name, eq, _ = flag.partition("=")
+        if not eq and not isinstance(getattr(NavConfig(), name, None), bool):
+            raise ValueError(f"{flag!r} is not a boolean NavConfig field (give other fields as name=value), in {text!r}")
+    try:  # a field NavConfig lacks, one the protocol sets, or a value it refuses is named here, before any run
+        check_env_overrides(env_overrides(cfg["env_flags"]))
+    except ValueError as e:
+        raise ValueError(f"{e}, in {text!r}") from None
     cfg["fallen_obstacles"] = "human_fallen_obstacles" in cfg["env_flags"]
     if min(cfg["plan_margin"], cfg["wall_margin"], cfg["lookahead"], cfg["turn_rate"], cfg["accel"] or 0.0) < 0:
         raise ValueError(f"margins, lookahead, turn rate and acceleration must be >= 0, got {text!r}")
@@ -124,11 +125,14 @@ def parse_constants(field: str, text: str) -> dict:
 
 
 def env_overrides(flags: list[str]) -> dict:
-    """NavConfig fields of a configuration's FALLEN field: ``name`` (a boolean, turned on) or ``name=value``."""
+    """NavConfig fields of a configuration's FALLEN field: ``name`` (a boolean, turned on) or ``name=value``
+    (the value read as ``--set`` values are, :func:`navzoo.envs.config.parse_override`: JSON, else a word)."""
+    from navzoo.envs.config import parse_override
+
     out: dict = {}
     for flag in flags:
-        name, _, value = flag.partition("=")
-        out[name] = value if value else True
+        name, value = parse_override(flag) if "=" in flag else (flag, True)
+        out[name] = value
     return out
 
 

@@ -118,10 +118,23 @@ def test_word_valued_config_fields_are_set_and_checked():
     assert ablation.env_overrides(cfg["env_flags"]) == {"human_replan_blocked": "off", "human_door_entries": True}
     with pytest.raises(ValueError, match="human_replan_blocked"):
         ablation.parse_config("c:0.1:0.1:4:2.0:human_replan_blocked=sometimes")
-    with pytest.raises(ValueError, match="takes a word"):
+    with pytest.raises(ValueError, match="human_door_entries must be a bool, got 'yes'"):
         ablation.parse_config("c:0.1:0.1:4:2.0:human_door_entries=yes")
     with pytest.raises(ValueError, match="boolean"):
         ablation.parse_config("c:0.1:0.1:4:2.0:human_replan_blocked")
+
+
+def test_numeric_and_boolean_config_fields_take_their_types():
+    """``name=value`` in the FALLEN field is read as ``--set`` values are: numbers and true/false typed, words kept."""
+    cfg = ablation.parse_config("c:0.1:0.1:4:2.0:amp_wall_strength=0.3+human_door_entries=false+human_at_goal=stop")
+    assert ablation.env_overrides(cfg["env_flags"]) == {"amp_wall_strength": 0.3, "human_door_entries": False,
+                                                        "human_at_goal": "stop"}
+    with pytest.raises(ValueError, match="amp_wall_strength must be None or a finite number > 0, got -1"):
+        ablation.parse_config("c:0.1:0.1:4:2.0:amp_wall_strength=-1")
+    with pytest.raises(ValueError, match="unknown NavConfig field.*amp_wall_strenght"):
+        ablation.parse_config("c:0.1:0.1:4:2.0:amp_wall_strenght=0.3")
+    with pytest.raises(ValueError, match="set by the following protocol"):
+        ablation.parse_config("c:0.1:0.1:4:2.0:n_humans=4")
 
 
 def test_kinematic_body_runs_are_their_own_sample(tmp_path):

@@ -866,7 +866,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "lobby,corridor); 'heldout': the 10 library scenes no setting was chosen on")
     parser.add_argument("--set", dest="env_set", action="append", default=[], metavar="KEY=VALUE",
                         help="NavConfig field for the following runs, repeatable (e.g. --set amp_wall_strength=0.3; "
-                             "values read as YAML); the realism crowd, throughput and video keep the defaults")
+                             "values read as JSON, else words); the realism crowd, throughput and video keep the defaults")
     parser.add_argument("--video", default=None, help="also write an mp4 of an AMP crowd here")
     parser.add_argument("--no-throughput", action="store_true")
     parser.add_argument("--workers", type=int, default=1, help="processes for the scenes of the following run")
@@ -880,7 +880,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def env_set_option(command: str, items: list[str]) -> dict[str, Any]:
     """``--set KEY=VALUE`` items as NavConfig overrides, parsed as ``navzoo train joint --set`` parses them (values
-    read as YAML: ``0.3``, ``true``, ``orca``); an item without ``=`` or a key given twice is a ValueError naming it."""
+    read as JSON, else kept as words: ``0.3``, ``true``, ``orca``, ``off``); an item without ``=`` or a key given twice is a ValueError naming it."""
     import argparse
 
     from navzoo.rl.train import _key_value

@@ -208,7 +208,12 @@ class NavConfig:
 
     def __post_init__(self) -> None:
         def bad(name: str, expected: str) -> ValueError:
-            return ValueError(f"NavConfig.{name} must be {expected}, got {getattr(self, name)!r}")
+            got = getattr(self, name)
+            hint = ""
+            if isinstance(got, bool) and expected.startswith("'"):
+                # YAML 1.1 reads unquoted off/on/yes/no as booleans
+                hint = " (in YAML, quote words such as 'off': unquoted off/on/yes/no are read as booleans)"
+            return ValueError(f"NavConfig.{name} must be {expected}, got {got!r}{hint}")
 
         if not isinstance(self.scene, str) or not self.scene:
             raise bad("scene", "a scene name or a path to a scene file")
@@ -389,18 +394,29 @@ def _is_pos(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
 
 
-def parse_overrides(items: Any) -> dict[str, Any]:
-    """``["KEY=VALUE", ...]`` (command-line ``--set`` options) as a dict; each value is read as JSON, else
-    kept as a string. ``ValueError`` names an item without ``=``. The keys are checked by NavConfig."""
+def parse_override(item: str) -> tuple[str, Any]:
+    """One command-line ``--set KEY=VALUE`` item as ``(key, value)``: the value is read as JSON (numbers,
+    ``true``/``false``, ``null``, lists), else kept as a string, so words such as ``off`` stay words.
+    ``ValueError`` names an item without ``=`` or with an empty key. The key and value are checked by NavConfig."""
     import json
 
+    if not isinstance(item, str) or "=" not in item:
+        raise ValueError(f"--set takes KEY=VALUE (a NavConfig field), got {item!r}")
+    key, text = item.split("=", 1)
+    key = key.strip()
+    if not key:
+        raise ValueError(f"--set takes KEY=VALUE (a NavConfig field), got an empty KEY in {item!r}")
+    try:
+        return key, json.loads(text)
+    except json.JSONDecodeError:
+        return key, text
+
+
+def parse_overrides(items: Any) -> dict[str, Any]:
+    """``["KEY=VALUE", ...]`` (command-line ``--set`` options) as a dict, each item read by
+    :func:`parse_override`. The keys are checked by NavConfig."""
     out: dict[str, Any] = {}
     for item in items or []:
-        if "=" not in item:
-            raise ValueError(f"--set takes KEY=VALUE, got {item!r}")
-        key, text = item.split("=", 1)
-        try:
-            out[key] = json.loads(text)
-        except json.JSONDecodeError:
-            out[key] = text
+        key, value = parse_override(item)
+        out[key] = value
     return out

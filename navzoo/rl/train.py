@@ -57,12 +57,13 @@ def _int_list(text: str) -> list[int]:
 
 
 def _key_value(text: str) -> tuple[str, Any]:
-    if "=" not in text:
-        raise argparse.ArgumentTypeError(f"expected KEY=VALUE (a NavConfig field), got {text!r}")
-    import yaml
+    """A ``--set KEY=VALUE`` item (:func:`navzoo.envs.config.parse_override`: JSON values, else words)."""
+    from navzoo.envs.config import parse_override
 
-    key, value = text.split("=", 1)
-    return key.strip(), yaml.safe_load(value)
+    try:
+        return parse_override(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -128,3 +128,31 @@ def test_evaluate_runs_fixed_policies_without_ray():
     assert evaluate(cfg, episodes=2, seed=7)["per_episode"] == res["per_episode"]  # seeded
     with pytest.raises(ValueError, match="evaluation runs fixed policies"):
         evaluate(JointConfig(), episodes=1)
+
+
+def test_set_values_are_json_else_words():
+    """``--set`` values: JSON where they parse (numbers, true/false, null, lists), else the word itself; a word
+    such as ``off`` stays a word (YAML would have read it as False, which NavConfig refuses)."""
+    from navzoo.envs.config import NavConfig, parse_override, parse_overrides
+    from navzoo.rl.train import _key_value
+
+    got = parse_overrides(["human_replan_blocked=off", "amp_wall_strength=0.3", "human_yielding=true",
+                           "n_humans=4", "amp_wall_strength_x=null", "human_speed=[1.0, 1.4]", "scene=a=b"])
+    assert got == {"human_replan_blocked": "off", "amp_wall_strength": 0.3, "human_yielding": True, "n_humans": 4,
+                   "amp_wall_strength_x": None, "human_speed": [1.0, 1.4], "scene": "a=b"}
+    assert _key_value(" human_at_goal =stop") == ("human_at_goal", "stop")
+    assert NavConfig(human_replan_blocked=_key_value("human_replan_blocked=off")[1]).human_replan_blocked == "off"
+    for item in ("oops", "=3"):
+        with pytest.raises(ValueError, match="KEY=VALUE"):
+            parse_override(item)
+        with pytest.raises(argparse.ArgumentTypeError, match="KEY=VALUE"):
+            _key_value(item)
+
+
+def test_yaml_booleans_in_word_fields_get_a_hint():
+    from navzoo.envs.config import NavConfig
+
+    with pytest.raises(ValueError, match=r"human_replan_blocked must be .*got False \(in YAML, quote words"):
+        NavConfig(human_replan_blocked=False)
+    with pytest.raises(ValueError, match=r"human_at_goal must be .*got 'fly'$"):
+        NavConfig(human_at_goal="fly")
