@@ -32,3 +32,23 @@ def test_a_crowd_run_reports_goals_speed_and_wall_proximity(capsys):
                                "--walls", "1.0:0.1,0.3:0.1"]) == 0
     out = capsys.readouterr().out
     assert "| station (3) |" in out and "A_wall 0.3" in out and "| all goals |" in out
+
+
+def test_walls_softer_only_near_others_are_a_setting_of_their_own(capsys):
+    assert sfm_lone_wall.parse_walls("1.0:0.1,1.0:0.1:1.5:0.3") == [(1.0, 0.1), (1.0, 0.1, 1.5, 0.3)]
+    for bad in ("1.0:0.1:1.5", "1.0:0.1:0:0.3", "1.0:0.1:1.5:nan"):
+        with pytest.raises(ValueError, match="NEAR:A_NEAR"):
+            sfm_lone_wall.parse_walls(bad)
+    with pytest.raises(SystemExit):
+        sfm_lone_wall.main(["--walls", "1.0:0.1:1.5:0.3", "--seeds", "0", "--seconds", "1"])  # a lone person
+    assert "use it with --crowd" in capsys.readouterr().err
+    plain = sfm_lone_wall.run_sfm("doorway", 6, 0, 15.0, 1.0, 0.1)
+    near = sfm_lone_wall.run_sfm("doorway", 6, 0, 15.0, 1.0, 0.1, 1.5, 0.3)
+    assert "wall_near_range" not in plain and (near["wall_near_range"], near["A_wall_near"]) == (1.5, 0.3)
+    assert sfm_lone_wall.wall_key(near) == (1.0, 0.1, 1.5, 0.3) and sfm_lone_wall.wall_key(plain) == (1.0, 0.1)
+    # the people of the doorway meet within 15 s, so the softer walls near others change their walk
+    assert (near["mean_speed"], near["near_wall_share"]) != (plain["mean_speed"], plain["near_wall_share"])
+    table = sfm_lone_wall.markdown({"scenes": {"doorway": 6}, "seeds": [0], "seconds": 15.0,
+                                    "walls": [[1.0, 0.1], [1.0, 0.1, 1.5, 0.3]], "runs": [plain, near]})
+    assert "A_wall 1, B_wall 0.1, 0.3 within 1.5 m of another" in table
+    assert f"| doorway (6) | {plain['goals']} / " in table
