@@ -103,6 +103,15 @@ class NavConfig:
             toward diffusion plans); None (default) = ``navzoo.envs.amp_humans.SFM_A_WALL`` (1.0, the kinematic
             crowd's own). 0.3 lets the targets pass nearer walls: more goals, about twice the wall contacts
             (docs/pedestrians.md, "Softer walls for the target rollouts").
+        crowd_wall_strength: wall potential strength (``SocialForceParams.A_wall``) of the social force that moves
+            the kinematic crowd (``crowd_model`` "sfm", and the bodies of the "diffusion" crowd between its plans) when
+            it runs on :class:`navzoo.agents.crowd.CrowdPolicy` without parameters of its own. 1.0 (default) =
+            ``SocialForceParams``' own; 0.3 lets people through narrow scenes, nearer the walls
+            (docs/crowd_models.md, "Softer walls").
+        crowd_wall_near_range: with > 0 (m), a person of that crowd who has another person within this distance
+            (centre to centre) feels the walls with ``crowd_wall_near_strength`` instead: softer walls only where
+            people meet (``SocialForceParams.wall_near_range``). 0 (default) = off.
+        crowd_wall_near_strength: that softer wall strength (``SocialForceParams.A_wall_near``), default 0.3.
         amp_stance_reward: ``human_model="amp"``: weight of a stance term added to the pedestrians' task
             reward: minus the excess over ``navzoo.agents.amp.features.STANCE_FREE_M`` (0.1 m) of the
             absolute running mean (time constant ``features.STANCE_TAU_S``, 1 s) of the right foot's fore-aft
@@ -183,6 +192,9 @@ class NavConfig:
     amp_progress_reward: float = 0.0
     amp_stance_reward: float = 0.0
     amp_wall_strength: float | None = None
+    crowd_wall_strength: float = 1.0
+    crowd_wall_near_range: float = 0.0
+    crowd_wall_near_strength: float = 0.3
     time_limit: float | None = None
     goal_tolerance: float | None = None
     min_goal_distance: float = 3.0
@@ -244,6 +256,11 @@ class NavConfig:
                 isinstance(self.amp_wall_strength, bool) or not isinstance(self.amp_wall_strength, int | float)
                 or not math.isfinite(self.amp_wall_strength) or self.amp_wall_strength <= 0):
             raise bad("amp_wall_strength", "None or a finite number > 0")
+        for name in ("crowd_wall_strength", "crowd_wall_near_strength"):
+            if not _is_pos(getattr(self, name)):
+                raise bad(name, "a finite number > 0")
+        if not _is_num(self.crowd_wall_near_range) or self.crowd_wall_near_range < 0:
+            raise bad("crowd_wall_near_range", "a finite number >= 0 (0 = off)")
         if self.crowd_model not in CROWD_MODELS:
             raise bad("crowd_model", "'sfm', 'orca', 'orca_rvo2', 'diffusion' or 'replay'")
         self._validate_replay()

@@ -1109,6 +1109,20 @@ class NavEnv(ParallelEnv):
         return self._index[agent]
 
     @property
+    def crowd_sfm_params(self):
+        """The :class:`navzoo.agents.sfm.SocialForceParams` of the kinematic crowd's social force, from the config's
+        ``crowd_wall_*`` fields (the defaults give ``SocialForceParams()``); used by a
+        :class:`navzoo.agents.crowd.CrowdPolicy` made without parameters of its own."""
+        from navzoo.agents.sfm import SocialForceParams
+
+        c = self.config
+        key = (c.crowd_wall_strength, c.crowd_wall_near_range, c.crowd_wall_near_strength)
+        if getattr(self, "_crowd_sfm", (None, None))[0] != key:
+            near = {"wall_near_range": key[1], "A_wall_near": key[2]} if key[1] > 0 else {}
+            self._crowd_sfm = (key, SocialForceParams(A_wall=key[0], **near))
+        return self._crowd_sfm[1]
+
+    @property
     def present(self) -> np.ndarray:
         """(N,) bool: agents in the world (robots always; pedestrians unless absent, see ``human_active``)."""
         return np.concatenate([np.ones(self.n_robots, dtype=bool), self.human_active])
