@@ -325,3 +325,30 @@ def test_a_realism_scenes_overlap_threshold_is_the_one_given():
     assert pairs > 0 and hits == pairs  # every pair is within a kilometre
     assert default["counts"]["overlap"][0] < pairs  # two people starting apart do not all overlap at 0.4 m
     assert default["counts"]["env_radius"] == wide["counts"]["env_radius"]
+
+
+def test_set_reaches_the_realism_and_reliability_runs_and_is_checked_first(monkeypatch, capsys):
+    """``navzoo eval crowd --set KEY=VALUE``: NavConfig fields of every run, refused by name before any run."""
+    seen = {}
+
+    def fake_following(scenes, seconds, seed, policy_dir, **kw):
+        seen["following"] = kw["env_overrides"]
+        return {"success_rate": 0.5, "fall_rate": 0.0, "trips": 2}, None
+
+    monkeypatch.setattr(ce, "real_data", lambda *a, **k: ({q: np.ones(5) for q in ce.QUANTITIES}, {}))
+    monkeypatch.setattr(ce.pedestrians, "following", fake_following)
+    res = ce.evaluate(scenes=["corridor"], people=2, seconds=2.0, crowds=["sfm"], rows=["sfm+kinematic"],
+                      with_cost=False, env_overrides={"crowd_wall_strength": 0.3})
+    assert seen["following"] == {"crowd_wall_strength": 0.3} == res["env_overrides"]
+    assert res["realism"]["settings"]["env_overrides"] == {"crowd_wall_strength": 0.3}
+    # the field reaches the scene runs: the softer walls walk a crowd differently from the default ones
+    soft = ce.crowd_scene("sfm", "doorway", 6, seconds=20.0, env_overrides={"crowd_wall_strength": 0.3})
+    default = ce.crowd_scene("sfm", "doorway", 6, seconds=20.0)
+    assert not np.array_equal(soft["kin"]["speed"], default["kin"]["speed"])
+    monkeypatch.setattr(ce, "realism", lambda *a, **k: pytest.fail("ran before --set was checked"))
+    for items, msg in ((["crowd_wall_strenght=0.3"], "unknown NavConfig field"),
+                       (["crowd_wall_strength=-1"], "crowd_wall_strength must be"),
+                       (["dt=0.2"], "set by the following protocol"),
+                       (["crowd_wall_strength"], "KEY=VALUE")):
+        with pytest.raises(SystemExit, match=msg):
+            ce.main(["--scenes", "lobby", "--no-cost", *[x for i in items for x in ("--set", i)]])

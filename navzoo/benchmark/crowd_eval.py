@@ -359,9 +359,10 @@ def _check_scenes(scenes: Sequence[str]) -> tuple[str, ...]:
 
 def crowd_scene(crowd: str, scene: str, n: int, seconds: float, seed: int = 0, dt: float = REALISM_DT,
                 step: float = STEP, max_jump: float = MAX_JUMP_M, min_start_speed: float = MIN_START_SPEED,
-                overlap_m: float = OVERLAP_M) -> dict[str, Any]:
+                overlap_m: float = OVERLAP_M, env_overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """One scene of :func:`realism`: ``n`` kinematic pedestrians of ``crowd`` for ``seconds``; returns
-    the pooled kinematics samples and collision counts (at the sim's dt).
+    the pooled kinematics samples and collision counts (at the sim's dt). ``env_overrides``: further NavConfig
+    fields (e.g. ``{"crowd_wall_strength": 0.3}``).
 
     The run uses one torch thread, however it is called (:func:`navzoo.torch_threads.one_torch_thread`), so the
     diffusion crowd walks the same in ``--workers 1`` (the calling process) as in a pool of single-threaded
@@ -369,17 +370,20 @@ def crowd_scene(crowd: str, scene: str, n: int, seconds: float, seed: int = 0, d
     from navzoo.torch_threads import one_torch_thread
 
     with one_torch_thread():
-        return _crowd_scene(crowd, scene, n, seconds, seed, dt, step, max_jump, min_start_speed, overlap_m)
+        return _crowd_scene(crowd, scene, n, seconds, seed, dt, step, max_jump, min_start_speed, overlap_m,
+                            env_overrides)
 
 
 def _crowd_scene(crowd: str, scene: str, n: int, seconds: float, seed: int, dt: float, step: float,
-                 max_jump: float, min_start_speed: float, overlap_m: float = OVERLAP_M) -> dict[str, Any]:
+                 max_jump: float, min_start_speed: float, overlap_m: float = OVERLAP_M,
+                 env_overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     from navzoo.agents.crowd import CrowdPolicy
     from navzoo.envs.nav_env import NavEnv
     from navzoo.envs.wrappers import FrozenAgents
 
     t0 = time.time()
-    env = NavEnv(scene=scene, n_robots=0, n_humans=n, crowd_model=crowd, dt=dt, time_limit=seconds)
+    env = NavEnv(scene=scene, n_robots=0, n_humans=n, crowd_model=crowd, dt=dt, time_limit=seconds,
+                 **(env_overrides or {}))
     wrapped = FrozenAgents(env, lambda a: a.startswith("human_"), CrowdPolicy(crowd))
     wrapped.reset(seed=seed)
     radius = env.radius[env.n_robots:]
@@ -405,16 +409,21 @@ def _crowd_scene(crowd: str, scene: str, n: int, seconds: float, seed: int, dt: 
 def realism(crowds: Sequence[str] = DEFAULT_CROWDS, scenes: Sequence[str] = pedestrians.SCENES,
             seconds: float = 200.0, seed: int = 0, workers: int = 1, people: Sequence[int] | None = None,
             data_dir: str | Path | None = None, dt: float = REALISM_DT,
-            real: tuple[dict[str, np.ndarray], dict[str, Any]] | None = None) -> dict[str, Any]:
+            real: tuple[dict[str, np.ndarray], dict[str, Any]] | None = None,
+            env_overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """Realism of each crowd against the real tracks (see the module doc): ``{crowd: {...}, "real": {...}}``.
-    ``real``: :func:`real_data`'s result, if already loaded (else it is loaded from ``data_dir``)."""
+    ``real``: :func:`real_data`'s result, if already loaded (else it is loaded from ``data_dir``).
+    ``env_overrides``: further NavConfig fields of every scene run (checked as
+    :func:`navzoo.benchmark.pedestrians.check_env_overrides` checks them)."""
+    overrides = pedestrians.check_env_overrides(env_overrides) or None
     crowds = _check_crowds(crowds)
     scenes = _check_scenes(scenes)
     people = list(people) if people is not None else pedestrians.people_per_scene(len(scenes))
     if len(people) != len(scenes):
         raise ValueError(f"need one people count per scene, got {len(people)} for {len(scenes)} scenes")
     real_kin, real_summary = real if real is not None else real_data(data_dir)
-    jobs = [(c, sc, n, seconds, seed, dt) for c in crowds for sc, n in zip(scenes, people, strict=True)]
+    jobs = [(c, sc, n, seconds, seed, dt, STEP, MAX_JUMP_M, MIN_START_SPEED, OVERLAP_M, overrides)
+            for c in crowds for sc, n in zip(scenes, people, strict=True)]
     rows = pedestrians._pool_map(crowd_scene, jobs, workers)
     out: dict[str, Any] = {}
     for c in crowds:
@@ -438,6 +447,8 @@ def realism(crowds: Sequence[str] = DEFAULT_CROWDS, scenes: Sequence[str] = pede
                        "step_s": STEP, "max_jump_m": MAX_JUMP_M, "min_start_speed": MIN_START_SPEED,
                        "overlap_m": OVERLAP_M, "bins": {q: [float(BINS[q][0]), float(BINS[q][-1]), len(BINS[q]) - 1]
                                                         for q in QUANTITIES}}
+    if overrides:
+        out["settings"]["env_overrides"] = overrides
     return out
 
 
@@ -446,7 +457,8 @@ def reliability(rows: Sequence[str] = tuple(RELIABILITY_ROWS), scenes: Sequence[
                 seconds: float = 200.0, seed: int = 0, workers: int = 1, policy_dir: str | None = None,
                 people: Sequence[int] | None = None, on_row=None, seeds: Sequence[int] | None = None,
                 resume_prefix: str | Path | None = None,
-                real_kin: dict[str, np.ndarray] | None = None) -> dict[str, Any]:
+                real_kin: dict[str, np.ndarray] | None = None,
+                env_overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """The reliability table: :func:`navzoo.benchmark.pedestrians.following` for each row of
     :data:`RELIABILITY_ROWS` named in ``rows`` (``people`` per scene, default 3-15 spread over
     ``scenes``; ``seconds`` each). ``on_row(rows_so_far)`` is called after each row (to save them).
@@ -455,7 +467,7 @@ def reliability(rows: Sequence[str] = tuple(RELIABILITY_ROWS), scenes: Sequence[
     so that an interrupted table rerun with the same settings resumes there (the caller removes them).
     Every row also has ``walked``: how its people walked (physics bodies or kinematic ones), in the terms of the
     realism part (:func:`navzoo.benchmark.pedestrians.following` with ``walked=True``), with the distances to
-    ``real_kin`` (:func:`real_data`'s samples) when given."""
+    ``real_kin`` (:func:`real_data`'s samples) when given. ``env_overrides``: further NavConfig fields of every run."""
     scenes = _check_scenes(scenes)
     bad = [r for r in rows if r not in RELIABILITY_ROWS]
     if bad:
@@ -469,7 +481,7 @@ def reliability(rows: Sequence[str] = tuple(RELIABILITY_ROWS), scenes: Sequence[
                                            people=None if people is None else list(people),
                                            seeds=None if seeds is None else list(seeds),
                                            resume=None if resume_prefix is None else row_resume_file(resume_prefix, name),
-                                           walked=True, real_kin=real_kin)
+                                           walked=True, real_kin=real_kin, env_overrides=env_overrides)
         metrics.update({"crowd_model": crowd, "human_model": body, "wall_s": round(time.time() - t0, 1)})
         if body == "kinematic":
             metrics["notes"] = ("kinematic bodies: no falls; contacts geometric (centre within the body radius "
@@ -610,15 +622,18 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
              amp: bool = True, with_cost: bool = True, workers: int = 1, seed: int = 0,
              scenes: Sequence[str] | None = None, people: int | None = None, data_dir: str | Path | None = None,
              policy_dir: str | None = None, out: str | Path | None = None,
-             rows: Sequence[str] | None = None, seeds: Sequence[int] | None = None) -> dict[str, Any]:
+             rows: Sequence[str] | None = None, seeds: Sequence[int] | None = None,
+             env_overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """Realism, reliability and cost (see the module doc). ``quick``: 2 scenes x 20 s, fewer timing
     repeats. ``people`` fixes the number of pedestrians in every scene (default 3-15 over the scenes).
     ``rows``: the reliability rows to run (default all of :data:`RELIABILITY_ROWS`).
     With ``out`` the result so far is written there after each part and each reliability row
     (``"partial": true`` until done), and the reliability rows resume their finished scene runs when an
     interrupted evaluation is rerun with the same settings (:func:`reliability`). ``seeds``: the
-    reliability rows over several seeds (the realism part uses the first)."""
+    reliability rows over several seeds (the realism part uses the first). ``env_overrides``: further NavConfig
+    fields of every realism and reliability run (``--set``), checked before any run."""
     t0 = time.time()
+    env_overrides = pedestrians.check_env_overrides(env_overrides) or None
     crowds = _check_crowds(crowds)
     scenes = _check_scenes(scenes if scenes is not None else (QUICK_SCENES if quick else pedestrians.SCENES))
     seconds = float(seconds if seconds is not None else (QUICK_SECONDS if quick else 200.0))
@@ -636,6 +651,8 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
     if bad:  # checked before the realism part, which runs for minutes
         raise ValueError(f"unknown reliability row(s) {bad}; choose from {', '.join(RELIABILITY_ROWS)}")
     result: dict[str, Any] = {"quick": quick, "machine": _machine()}
+    if env_overrides:
+        result["env_overrides"] = env_overrides
 
     def save(partial: bool) -> None:
         result["partial"] = partial
@@ -650,7 +667,8 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
     else:
         counts = None
     real = real_data(data_dir)
-    result["realism"] = realism(crowds, scenes, seconds, seed, workers, counts, data_dir, real=real)
+    result["realism"] = realism(crowds, scenes, seconds, seed, workers, counts, data_dir, real=real,
+                                env_overrides=env_overrides)
     save(True)
     rows = [r for r in rows if amp or RELIABILITY_ROWS[r][1] != "amp"]
 
@@ -659,7 +677,7 @@ def evaluate(quick: bool = False, seconds: float | None = None, crowds: Sequence
         save(True)
 
     result["reliability"] = reliability(rows, scenes, seconds, seed, workers, policy_dir, counts, row_done, seeds=seeds,
-                                        resume_prefix=out, real_kin=real[0])
+                                        resume_prefix=out, real_kin=real[0], env_overrides=env_overrides)
     result["reliability_paper"] = PAPER_RELIABILITY
     save(True)
     if with_cost:
@@ -799,6 +817,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="only the replan and step timings (seconds, no data needed), then exit")
     parser.add_argument("--data", default=None, help="ETH/UCY folder (default: the shared data folder)")
     parser.add_argument("--policy", default=None, help="exported AMP policy folder (default: the shipped one)")
+    parser.add_argument("--set", dest="env_set", action="append", default=[], metavar="KEY=VALUE",
+                        help="NavConfig field for every realism and reliability run, repeatable (e.g. --set "
+                             "crowd_wall_strength=0.3; values read as JSON, else words); the cost timings keep the "
+                             "defaults")
     parser.add_argument("--markdown", default=None, metavar="RESULT_JSON",
                         help="print Markdown tables of an earlier result (--out file) and exit")
 
@@ -816,10 +838,16 @@ def run_cli(args: argparse.Namespace) -> int:
         print(json.dumps(result, indent=None if args.json else 2, default=_json_default))
         return 0
     seeds = pedestrians.seeds_option("navzoo eval crowd", args.seed, args.seeds)
+    try:
+        overrides = pedestrians.env_set_option("navzoo eval crowd", args.env_set)
+        pedestrians.check_env_overrides(overrides)  # before the minutes of the realism part
+    except ValueError as exc:
+        msg = str(exc)
+        raise SystemExit(msg if msg.startswith("navzoo eval crowd") else f"navzoo eval crowd: --set: {msg}") from None
     result = evaluate(args.quick, args.seconds, args.crowds, amp=not args.no_amp, with_cost=not args.no_cost,
                       workers=args.workers, seed=0 if args.seed is None else args.seed, scenes=args.scenes,
                       people=args.people, data_dir=args.data, policy_dir=args.policy, out=args.out, rows=args.rows,
-                      seeds=seeds)
+                      seeds=seeds, env_overrides=overrides)
     print(json.dumps(result, indent=None if args.json else 2, default=_json_default))
     return 0
 
