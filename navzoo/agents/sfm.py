@@ -97,6 +97,10 @@ class SocialForceParams:
             queue or pass one another, the full walls for a person alone (at corners, along walls). 0 = off
             (the default).
         A_wall_near: Wall potential strength for people within ``wall_near_range`` of another person.
+        wall_near_ramp: With > 0 (m), the softer walls phase in linearly instead of switching: a person whose
+            nearest other is at ``wall_near_range + wall_near_ramp`` feels ``A_wall``, at ``wall_near_range`` or
+            nearer ``A_wall_near``, in between a linear blend (the wall force is linear in the strength). 0 = the
+            switch at ``wall_near_range`` (the default).
     """
 
     tau: float = 0.5
@@ -116,11 +120,12 @@ class SocialForceParams:
     pass_speed: float = 1.0
     wall_near_range: float = 0.0
     A_wall_near: float = 1.0
+    wall_near_ramp: float = 0.0
 
     def __post_init__(self) -> None:
         positive = ("tau", "B", "B_wall", "neighbor_dist", "max_accel", "max_substep", "keep_range", "pass_speed")
         non_negative = ("A", "A_wall", "step_time", "side_bias", "keep_apart", "pass_margin", "wall_near_range",
-                        "A_wall_near")
+                        "A_wall_near", "wall_near_ramp")
         for f in fields(self):
             value = getattr(self, f.name)
             if not np.isfinite(value):
@@ -397,7 +402,16 @@ def social_forces(
     if params.wall_near_range > 0.0 and n > 1 and seg.shape[0]:
         gap = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=2)
         np.fill_diagonal(gap, np.inf)
-        near = gap.min(axis=1) < params.wall_near_range
+        nearest = gap.min(axis=1)
+        if params.wall_near_ramp > 0.0:  # blend: the strength is linear in the share of the softer walls
+            share = np.clip((params.wall_near_range + params.wall_near_ramp - nearest) / params.wall_near_ramp, 0, 1)
+            if params.A_wall > 0.0:
+                a_eff = params.A_wall + share * (params.A_wall_near - params.A_wall)
+                walls = _wall_forces(pos, w_rad, seg, params, groups) * (a_eff / params.A_wall)[:, None]
+            else:
+                walls = share[:, None] * _wall_forces(pos, w_rad, seg, replace(params, A_wall=params.A_wall_near), groups)
+            return SocialForces(goal=goal, people=people, robots=robots, walls=walls)
+        near = nearest < params.wall_near_range
     if near.any():  # other walls for people who meet, queue or pass another; each person's walls computed once
         walls = np.zeros((n, 2))
         walls[~near] = _wall_forces(pos[~near], w_rad[~near], seg, params, groups)

@@ -112,6 +112,8 @@ class NavConfig:
             (centre to centre) feels the walls with ``crowd_wall_near_strength`` instead: softer walls only where
             people meet (``SocialForceParams.wall_near_range``). 0 (default) = off.
         crowd_wall_near_strength: that softer wall strength (``SocialForceParams.A_wall_near``), default 0.3.
+        crowd_wall_near_ramp: with > 0 (m), the softer walls phase in linearly from ``crowd_wall_near_range`` +
+            this distance to ``crowd_wall_near_range`` instead of switching (``SocialForceParams.wall_near_ramp``).
         amp_stance_reward: ``human_model="amp"``: weight of a stance term added to the pedestrians' task
             reward: minus the excess over ``navzoo.agents.amp.features.STANCE_FREE_M`` (0.1 m) of the
             absolute running mean (time constant ``features.STANCE_TAU_S``, 1 s) of the right foot's fore-aft
@@ -195,6 +197,7 @@ class NavConfig:
     crowd_wall_strength: float = 1.0
     crowd_wall_near_range: float = 0.0
     crowd_wall_near_strength: float = 0.3
+    crowd_wall_near_ramp: float = 0.0
     time_limit: float | None = None
     goal_tolerance: float | None = None
     min_goal_distance: float = 3.0
@@ -261,6 +264,8 @@ class NavConfig:
                 raise bad(name, "a finite number > 0")
         if not _is_num(self.crowd_wall_near_range) or self.crowd_wall_near_range < 0:
             raise bad("crowd_wall_near_range", "a finite number >= 0 (0 = off)")
+        if not _is_num(self.crowd_wall_near_ramp) or self.crowd_wall_near_ramp < 0:
+            raise bad("crowd_wall_near_ramp", "a finite number >= 0 (0 = a switch)")
         if self.crowd_model not in CROWD_MODELS:
             raise bad("crowd_model", "'sfm', 'orca', 'orca_rvo2', 'diffusion' or 'replay'")
         self._validate_replay()

@@ -1116,9 +1116,9 @@ class NavEnv(ParallelEnv):
         from navzoo.agents.sfm import SocialForceParams
 
         c = self.config
-        key = (c.crowd_wall_strength, c.crowd_wall_near_range, c.crowd_wall_near_strength)
+        key = (c.crowd_wall_strength, c.crowd_wall_near_range, c.crowd_wall_near_strength, c.crowd_wall_near_ramp)
         if getattr(self, "_crowd_sfm", (None, None))[0] != key:
-            near = {"wall_near_range": key[1], "A_wall_near": key[2]} if key[1] > 0 else {}
+            near = {"wall_near_range": key[1], "A_wall_near": key[2], "wall_near_ramp": key[3]} if key[1] > 0 else {}
             self._crowd_sfm = (key, SocialForceParams(A_wall=key[0], **near))
         return self._crowd_sfm[1]
 

@@ -254,3 +254,29 @@ def test_walls_near_another_person_use_their_own_strength() -> None:
     np.testing.assert_allclose(social_forces(params=SocialForceParams(A_wall_near=0.3), **kw).walls, full)  # off
     with pytest.raises(ValueError, match="wall_near_range"):
         SocialForceParams(wall_near_range=-1.0)
+
+
+def test_walls_near_another_person_can_phase_in() -> None:
+    """``wall_near_ramp``: the softer walls blend in linearly between ``wall_near_range + wall_near_ramp`` and
+    ``wall_near_range`` of the nearest other person, instead of switching at ``wall_near_range``."""
+    from navzoo.agents.sfm import SocialForceParams, social_forces
+
+    wall = np.array([[[-10.0, 0.0], [10.0, 0.0]]])
+    # nearest others at 1.0 m (within range), 2.0 m (half the ramp beyond 1.5 m) and far away
+    pos = np.array([[0.0, 0.35], [1.0, 0.35], [3.0, 0.35], [9.0, 0.35]])
+    vel = np.zeros((4, 2))
+    kw = dict(pos=pos, vel=vel, pref_vel=vel, radius=0.25, segments=wall)
+    full = social_forces(params=SocialForceParams(), **kw).walls
+    ramp = social_forces(params=SocialForceParams(wall_near_range=1.5, A_wall_near=0.3, wall_near_ramp=1.0), **kw).walls
+    np.testing.assert_allclose(ramp[:2], 0.3 * full[:2])  # within range: the softer walls
+    np.testing.assert_allclose(ramp[2], 0.65 * full[2])  # person 2 is 2.0 m from person 1: halfway, 0.3 + 0.5 * 0.7
+    np.testing.assert_allclose(ramp[3], full[3])  # alone
+    switch = social_forces(params=SocialForceParams(wall_near_range=1.5, A_wall_near=0.3), **kw).walls
+    np.testing.assert_allclose(switch[2], full[2])  # without a ramp, 2.0 m is out of range
+    # with no wall strength at all for people alone, the blend still gives the share of the softer walls
+    zero = social_forces(params=SocialForceParams(A_wall=0.0, wall_near_range=1.5, A_wall_near=0.3,
+                                                  wall_near_ramp=1.0), **kw).walls
+    np.testing.assert_allclose(zero[2], 0.5 * 0.3 * full[2])
+    np.testing.assert_allclose(zero[3], 0.0)
+    with pytest.raises(ValueError, match="wall_near_ramp"):
+        SocialForceParams(wall_near_ramp=-1.0)

@@ -31,6 +31,8 @@ def test_defaults_are_the_social_force_defaults():
         assert env.crowd_sfm_params == SocialForceParams()
         env.config = env.config.replace(crowd_wall_strength=0.3, crowd_wall_near_range=1.5)
         assert env.crowd_sfm_params == SocialForceParams(A_wall=0.3, wall_near_range=1.5, A_wall_near=0.3)
+        env.config = env.config.replace(crowd_wall_near_ramp=1.0)
+        assert env.crowd_sfm_params.wall_near_ramp == 1.0
     finally:
         env.close()
 
@@ -54,6 +56,7 @@ def test_the_config_walls_move_the_crowd_and_own_parameters_win():
     ("crowd_wall_near_strength", -1.0, "a finite number > 0"),
     ("crowd_wall_near_range", -0.5, ">= 0"),
     ("crowd_wall_near_range", True, ">= 0"),
+    ("crowd_wall_near_ramp", -1.0, ">= 0"),
 ])
 def test_bad_crowd_walls_are_refused_by_name(field, value, msg):
     with pytest.raises(ValueError, match=f"NavConfig.{field} must be .*{msg}"):
