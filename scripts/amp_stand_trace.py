@@ -200,11 +200,11 @@ def main() -> None:
     if args.people < 1 or args.seconds <= 0 or args.every <= 0 or args.still <= 0:
         ap.error("--people, --seconds, --every and --still must be positive")
     from navzoo.benchmark.matched_realism import _settings, check_diffusion_settings
-    from navzoo.benchmark.pedestrians import check_env_overrides, env_set_option
+    from navzoo.benchmark.pedestrians import env_set_option
 
     try:
         settings = check_diffusion_settings(_settings(args.diffusion_set))
-        overrides = check_env_overrides(env_set_option("amp_stand_trace.py", args.env_set))
+        overrides = env_set_option("amp_stand_trace.py", args.env_set)
     except ValueError as e:
         ap.error(str(e))
     result = trace(args.scene, args.people, args.crowd, args.seconds, args.seed, args.every, args.still, args.policy,

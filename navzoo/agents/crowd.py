@@ -32,7 +32,7 @@ class CrowdPolicy:
             ETH/UCY tracks, :mod:`navzoo.agents.replay`: the env moves the people itself and ignores
             their actions; this policy returns their recorded velocities as actions, for completeness).
         see_robots: whether people react to robots (False = CrowdNav's invisible robot).
-        sfm_params / orca_params: model parameters. Without ``sfm_params`` the social force takes the env's
+        sfm_params / orca_params: model parameters. Without ``sfm_params`` (None) the social force takes the env's
             (``NavEnv.crowd_sfm_params``: the defaults, with the config's ``crowd_wall_*`` walls).
     """
 
@@ -47,8 +47,7 @@ class CrowdPolicy:
             raise ValueError(f"crowd model must be 'sfm', 'orca', 'orca_rvo2', 'diffusion' or 'replay', got {model!r}")
         self.model = model
         self.see_robots = see_robots
-        self.sfm_params = sfm_params or SocialForceParams()
-        self._own_sfm = sfm_params is not None
+        self.sfm_params = sfm_params
         if orca_params is None:
             orca_params = OrcaParams(right_bias=0.0, one_step_safety=False) if model == "orca_rvo2" else OrcaParams()
         self.orca_params = orca_params
@@ -78,8 +77,7 @@ class CrowdPolicy:
         robots = np.flatnonzero(env.alive[:R]) if self.see_robots else np.zeros(0, dtype=int)
         if self.model in ("sfm", "diffusion"):
             return social_force_velocities(
-                pos, vel, pref, rad, vmax, env.config.dt, self.sfm_params if self._own_sfm else env.crowd_sfm_params,
-                env.segments,
+                pos, vel, pref, rad, vmax, env.config.dt, self.sfm_params or env.crowd_sfm_params, env.segments,
                 others_pos=env.pos[robots], others_vel=env.vel[robots], others_radius=env.radius[robots],
                 segment_groups=env.segment_groups,
             )

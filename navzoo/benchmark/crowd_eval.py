@@ -838,12 +838,10 @@ def run_cli(args: argparse.Namespace) -> int:
         print(json.dumps(result, indent=None if args.json else 2, default=_json_default))
         return 0
     seeds = pedestrians.seeds_option("navzoo eval crowd", args.seed, args.seeds)
-    try:
+    try:  # checked before the minutes of the realism part
         overrides = pedestrians.env_set_option("navzoo eval crowd", args.env_set)
-        pedestrians.check_env_overrides(overrides)  # before the minutes of the realism part
     except ValueError as exc:
-        msg = str(exc)
-        raise SystemExit(msg if msg.startswith("navzoo eval crowd") else f"navzoo eval crowd: --set: {msg}") from None
+        raise SystemExit(str(exc)) from None
     result = evaluate(args.quick, args.seconds, args.crowds, amp=not args.no_amp, with_cost=not args.no_cost,
                       workers=args.workers, seed=0 if args.seed is None else args.seed, scenes=args.scenes,
                       people=args.people, data_dir=args.data, policy_dir=args.policy, out=args.out, rows=args.rows,

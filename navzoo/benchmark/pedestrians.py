@@ -879,22 +879,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def env_set_option(command: str, items: list[str]) -> dict[str, Any]:
-    """``--set KEY=VALUE`` items as NavConfig overrides, parsed as ``navzoo train joint --set`` parses them (values
-    read as JSON, else kept as words: ``0.3``, ``true``, ``orca``, ``off``); an item without ``=`` or a key given twice is a ValueError naming it."""
-    import argparse
-
-    from navzoo.rl.train import _key_value
+    """``--set KEY=VALUE`` items as NavConfig overrides, parsed as every ``--set`` is
+    (:func:`navzoo.envs.config.parse_override`: values read as JSON, else kept as words: ``0.3``, ``true``, ``orca``,
+    ``off``) and checked by :func:`check_env_overrides`; an item without ``=``, a key given twice, an unknown field,
+    a field the protocol sets or a refused value is a ValueError naming it, after ``command``."""
+    from navzoo.envs.config import parse_override
 
     out: dict[str, Any] = {}
-    for item in items:
-        try:
-            key, value = _key_value(item)
-        except argparse.ArgumentTypeError as exc:
-            raise ValueError(f"{command}: --set: {exc}") from None
-        if key in out:
-            raise ValueError(f"{command}: --set {key} given twice")
-        out[key] = value
-    return out
+    try:
+        for item in items:
+            key, value = parse_override(item)
+            if key in out:
+                raise ValueError(f"{key} given twice")
+            out[key] = value
+        return check_env_overrides(out)
+    except ValueError as exc:
+        raise ValueError(f"{command}: --set: {exc}") from None
 
 
 def run_cli(args: argparse.Namespace) -> int:
