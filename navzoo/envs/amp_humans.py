@@ -157,9 +157,12 @@ PASS_SPEED = 1.0  # m/s
 SFM_A_WALL = 1.0
 # Softer walls only where people meet: with SFM_WALL_NEAR_RANGE > 0 (m), a person of the rollouts who has another
 # within that distance feels the walls with SFM_A_WALL_NEAR instead (SocialForceParams.wall_near_range). An option,
-# off (docs/pedestrians.md, "Softer walls only where people meet").
+# off (docs/pedestrians.md, "Softer walls only where people meet"). With SFM_WALL_NEAR_RAMP > 0 (m) the softer walls
+# phase in linearly from SFM_WALL_NEAR_RANGE + SFM_WALL_NEAR_RAMP down to SFM_WALL_NEAR_RANGE instead of switching
+# (SocialForceParams.wall_near_ramp; 0 = the switch).
 SFM_WALL_NEAR_RANGE = 0.0
 SFM_A_WALL_NEAR = 0.3
+SFM_WALL_NEAR_RAMP = 0.0
 
 
 # Social force turns a disc toward a new direction as fast as its relaxation allows: at a trip's
@@ -349,7 +352,8 @@ class AmpHumans:
         self.stance = np.zeros(self.n)  # running mean of foot_split (STANCE_TAU_S), updated by task_reward
         wall = env.config.amp_wall_strength
         self.a_wall = float(SFM_A_WALL if wall is None else wall)  # A_wall of the target rollouts
-        self.walls = {"A_wall": self.a_wall, "wall_near_range": SFM_WALL_NEAR_RANGE, "A_wall_near": SFM_A_WALL_NEAR}
+        self.walls = {"A_wall": self.a_wall, "wall_near_range": SFM_WALL_NEAR_RANGE, "A_wall_near": SFM_A_WALL_NEAR,
+                      "wall_near_ramp": SFM_WALL_NEAR_RAMP}
         self.sfm = SocialForceParams(**self.walls)
         self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN, **self.walls)
         model = env.config.crowd_model
