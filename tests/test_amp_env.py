@@ -292,6 +292,32 @@ def test_follow_scene_runs_on_one_torch_thread_and_gives_the_callers_back(monkey
     assert seen == [1] and after == 2
 
 
+def test_softer_walls_near_others_of_the_target_rollouts_are_config_fields():
+    """``amp_wall_near_range`` / ``_strength`` / ``_ramp`` reach both social-force parameter sets of the target
+    rollouts, and change the targets of people who meet in a narrow scene; bad values are refused by name."""
+    from navzoo.envs import amp_humans
+
+    kw = {"amp_wall_near_range": 1.5, "amp_wall_near_strength": 0.2, "amp_wall_near_ramp": 1.0}
+    paths = {}
+    for name, over in (("default", {}), ("near", kw)):
+        env = _raw(n_robots=0, n_humans=8, scene="doorway", **over)
+        env.reset(seed=1)
+        want = (1.5, 0.2, 1.0) if over else (amp_humans.SFM_WALL_NEAR_RANGE, amp_humans.SFM_A_WALL_NEAR,
+                                             amp_humans.SFM_WALL_NEAR_RAMP)
+        for sfm in (env.amp.sfm, env.amp.sfm_keep):
+            assert (sfm.wall_near_range, sfm.A_wall_near, sfm.wall_near_ramp) == want
+        for _ in range(30):
+            env.step({a: env.action_space(a).sample() * 0 for a in env.agents})
+        paths[name] = env.amp.paths.copy()
+        env.close()
+    assert not np.allclose(paths["default"], paths["near"])
+    for field, bad, says in (("amp_wall_near_range", -1.0, ">= 0"), ("amp_wall_near_ramp", float("nan"), ">= 0"),
+                             ("amp_wall_near_strength", 0.0, "> 0"), ("amp_wall_near_range", True, ">= 0"),
+                             ("amp_wall_near_strength", "0.3", "> 0")):
+        with pytest.raises(ValueError, match=f"{field} must be None or a finite number {says}"):
+            NavConfig(human_model="amp", dt=DT, **{field: bad})
+
+
 def test_the_wall_strength_of_the_target_rollouts_is_a_config_field():
     """``amp_wall_strength`` sets A_wall of the social-force target rollouts (None: the module's SFM_A_WALL);
     softer walls let the targets pass nearer the walls."""
@@ -308,8 +334,9 @@ def test_the_wall_strength_of_the_target_rollouts_is_a_config_field():
         env.close()
     assert not np.array_equal(clear[None], clear[0.3])
     assert np.quantile(clear[0.3], 0.05) < np.quantile(clear[None], 0.05)
-    env = _raw(n_robots=0, n_humans=2, scene="doorway")
-    assert env.amp.sfm.wall_near_range == amp_humans.SFM_WALL_NEAR_RANGE  # the passing-only softness: module option
+    env = _raw(n_robots=0, n_humans=2, scene="doorway")  # the passing-only softness: None takes the module's
+    assert (env.amp.sfm.wall_near_range, env.amp.sfm.A_wall_near, env.amp.sfm.wall_near_ramp) == (
+        amp_humans.SFM_WALL_NEAR_RANGE, amp_humans.SFM_A_WALL_NEAR, amp_humans.SFM_WALL_NEAR_RAMP)
     env.close()
     for bad in (0, -0.3, float("nan"), float("inf"), True, "0.3"):
         with pytest.raises(ValueError, match="amp_wall_strength"):

@@ -352,8 +352,11 @@ class AmpHumans:
         self.stance = np.zeros(self.n)  # running mean of foot_split (STANCE_TAU_S), updated by task_reward
         wall = env.config.amp_wall_strength
         self.a_wall = float(SFM_A_WALL if wall is None else wall)  # A_wall of the target rollouts
-        self.walls = {"A_wall": self.a_wall, "wall_near_range": SFM_WALL_NEAR_RANGE, "A_wall_near": SFM_A_WALL_NEAR,
-                      "wall_near_ramp": SFM_WALL_NEAR_RAMP}
+        cfg = env.config
+        near = {"wall_near_range": (cfg.amp_wall_near_range, SFM_WALL_NEAR_RANGE),
+                "A_wall_near": (cfg.amp_wall_near_strength, SFM_A_WALL_NEAR),
+                "wall_near_ramp": (cfg.amp_wall_near_ramp, SFM_WALL_NEAR_RAMP)}
+        self.walls = {"A_wall": self.a_wall, **{k: float(const if v is None else v) for k, (v, const) in near.items()}}
         self.sfm = SocialForceParams(**self.walls)
         self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN, **self.walls)
         model = env.config.crowd_model

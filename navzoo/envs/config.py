@@ -103,6 +103,16 @@ class NavConfig:
             toward diffusion plans); None (default) = ``navzoo.envs.amp_humans.SFM_A_WALL`` (1.0, the kinematic
             crowd's own). 0.3 lets the targets pass nearer walls: more goals, about twice the wall contacts
             (docs/pedestrians.md, "Softer walls for the target rollouts").
+        amp_wall_near_range: ``human_model="amp"``: with > 0 (m), a person of those target rollouts who has another
+            person within this distance (centre to centre) feels the walls with ``amp_wall_near_strength`` instead:
+            softer walls only where people meet (``SocialForceParams.wall_near_range``); 0 = off. None (default) =
+            ``navzoo.envs.amp_humans.SFM_WALL_NEAR_RANGE`` (0, off).
+        amp_wall_near_strength: that softer wall strength (``SocialForceParams.A_wall_near``); None (default) =
+            ``amp_humans.SFM_A_WALL_NEAR`` (0.3).
+        amp_wall_near_ramp: with > 0 (m), those softer walls phase in linearly from ``amp_wall_near_range`` + this
+            distance down to ``amp_wall_near_range`` instead of switching (``SocialForceParams.wall_near_ramp``);
+            None (default) = ``amp_humans.SFM_WALL_NEAR_RAMP`` (0, a switch). Range 1.5 with ramp 1.0 measured in
+            docs/pedestrians.md, "A ramp instead of a switch".
         crowd_wall_strength: wall potential strength (``SocialForceParams.A_wall``) of the social force that moves
             the kinematic crowd (``crowd_model`` "sfm", and the bodies of the "diffusion" crowd between its plans) when
             it runs on :class:`navzoo.agents.crowd.CrowdPolicy` without parameters of its own. 1.0 (default) =
@@ -194,6 +204,9 @@ class NavConfig:
     amp_progress_reward: float = 0.0
     amp_stance_reward: float = 0.0
     amp_wall_strength: float | None = None
+    amp_wall_near_range: float | None = None
+    amp_wall_near_strength: float | None = None
+    amp_wall_near_ramp: float | None = None
     crowd_wall_strength: float = 1.0
     crowd_wall_near_range: float = 0.0
     crowd_wall_near_strength: float = 0.3
@@ -259,6 +272,12 @@ class NavConfig:
                 isinstance(self.amp_wall_strength, bool) or not isinstance(self.amp_wall_strength, int | float)
                 or not math.isfinite(self.amp_wall_strength) or self.amp_wall_strength <= 0):
             raise bad("amp_wall_strength", "None or a finite number > 0")
+        if self.amp_wall_near_strength is not None and not _is_pos(self.amp_wall_near_strength):
+            raise bad("amp_wall_near_strength", "None or a finite number > 0")
+        for name, zero in (("amp_wall_near_range", "off"), ("amp_wall_near_ramp", "a switch")):
+            value = getattr(self, name)
+            if value is not None and (not _is_num(value) or value < 0):
+                raise bad(name, f"None or a finite number >= 0 (0 = {zero})")
         for name in ("crowd_wall_strength", "crowd_wall_near_strength"):
             if not _is_pos(getattr(self, name)):
                 raise bad(name, "a finite number > 0")
