@@ -10,7 +10,7 @@
 #
 # `out` moves every folder of training/ and policies/, docs/ and benchmarks/ to STASH (default
 # ../.device_stash, outside the repository), except the paths named, and the exported policies (policies/) of a
-# named training folder. `back` moves them back. Both refuse to
+# named training folder. `back` moves them back (and moves nothing if any path was made again meanwhile). Both refuse to
 # overwrite anything, and `git status` shows the moved files as deleted until `back`: never commit between the two.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -45,6 +45,20 @@ case "$mode" in
     ;;
   back)
     [ -d "$STASH" ] || { echo "$STASH: nothing to put back" >&2; exit 1; }
+    # check every path first, so that a conflict moves nothing (a half put-back tree is harder to mend)
+    clash=""
+    for sub in $(cd "$STASH" && find training -mindepth 2 -maxdepth 2 -name policies 2>/dev/null); do
+      [ -d "$(dirname "$sub")" ] && [ -e "$sub" ] && clash="$clash $sub"
+    done
+    for path in $(cd "$STASH" && find training policies -mindepth 1 -maxdepth 1 2>/dev/null) docs benchmarks; do
+      case "$path" in training/*) [ -d "$path" ] && [ -d "$STASH/$path/policies" ] && continue ;; esac  # a kept folder
+      [ -e "$STASH/$path" ] && [ -e "$path" ] && clash="$clash $path"
+    done
+    if [ -n "$clash" ]; then
+      echo "in the tree and in $STASH:$clash; nothing moved. Something wrote there while the tree was slim (results" >&2
+      echo "copied into docs/?): move it aside, remove the path from the tree, run 'back', then move it in again" >&2
+      exit 1
+    fi
     for sub in $(cd "$STASH" && find training -mindepth 2 -maxdepth 2 -name policies 2>/dev/null); do
       [ -d "$(dirname "$sub")" ] || continue  # its whole training folder was moved: the loop below puts it back
       [ -e "$sub" ] && { echo "$sub exists in the tree and in $STASH: left both as they are" >&2; exit 1; }

@@ -48,3 +48,28 @@ def test_out_keeps_the_named_paths_and_back_restores_everything(tmp_path: Path) 
     assert _run(repo, "back").returncode == 1  # nothing to put back
     bad = _run(repo, "out", "no/such/path")
     assert bad.returncode == 1 and "no/such/path" in bad.stderr and not stash.exists()
+
+
+@pytest.mark.skipif(shutil.which("git") is None, reason="needs git")
+def test_back_moves_nothing_when_a_stashed_path_was_made_again(tmp_path: Path) -> None:
+    """Results copied into docs/ while it is stashed: ``back`` names the clash and leaves both sides whole."""
+    repo = tmp_path / "repo"
+    (repo / "scripts").mkdir(parents=True)
+    shutil.copy(ROOT / "scripts" / "device_slim_tree.sh", repo / "scripts")
+    files = ["training/run_b/meta.json", "policies/other/model.pt", "docs/x.md", "benchmarks/r/e.jsonl"]
+    for f in files:
+        (repo / f).parent.mkdir(parents=True, exist_ok=True)
+        (repo / f).write_text(f)
+    subprocess.run(["git", "init", "-q"], cwd=repo, check=True)
+    stash = tmp_path / ".device_stash"
+    assert _run(repo, "out").returncode == 0
+    (repo / "docs/results").mkdir(parents=True)
+    (repo / "docs/results/new.jsonl").write_text("new")
+    back = _run(repo, "back")
+    assert back.returncode == 1 and "docs" in back.stderr and "nothing moved" in back.stderr
+    assert all((stash / f).read_text() == f for f in files)  # the stash is whole
+    assert not (repo / "training/run_b").exists() and (repo / "docs/results/new.jsonl").read_text() == "new"
+    shutil.move(repo / "docs/results/new.jsonl", tmp_path / "new.jsonl")
+    shutil.rmtree(repo / "docs")
+    assert _run(repo, "back").returncode == 0
+    assert all((repo / f).read_text() == f for f in files) and not stash.exists()
