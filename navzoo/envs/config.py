@@ -268,23 +268,16 @@ class NavConfig:
         if (isinstance(self.amp_stance_reward, bool) or not isinstance(self.amp_stance_reward, int | float)
                 or not math.isfinite(self.amp_stance_reward) or self.amp_stance_reward < 0):
             raise bad("amp_stance_reward", "a finite number >= 0")
-        if self.amp_wall_strength is not None and (
-                isinstance(self.amp_wall_strength, bool) or not isinstance(self.amp_wall_strength, int | float)
-                or not math.isfinite(self.amp_wall_strength) or self.amp_wall_strength <= 0):
-            raise bad("amp_wall_strength", "None or a finite number > 0")
-        if self.amp_wall_near_strength is not None and not _is_pos(self.amp_wall_near_strength):
-            raise bad("amp_wall_near_strength", "None or a finite number > 0")
-        for name, zero in (("amp_wall_near_range", "off"), ("amp_wall_near_ramp", "a switch")):
-            value = getattr(self, name)
-            if value is not None and (not _is_num(value) or value < 0):
-                raise bad(name, f"None or a finite number >= 0 (0 = {zero})")
-        for name in ("crowd_wall_strength", "crowd_wall_near_strength"):
-            if not _is_pos(getattr(self, name)):
-                raise bad(name, "a finite number > 0")
-        if not _is_num(self.crowd_wall_near_range) or self.crowd_wall_near_range < 0:
-            raise bad("crowd_wall_near_range", "a finite number >= 0 (0 = off)")
-        if not _is_num(self.crowd_wall_near_ramp) or self.crowd_wall_near_ramp < 0:
-            raise bad("crowd_wall_near_ramp", "a finite number >= 0 (0 = a switch)")
+        # the wall settings of the physics pedestrians' target rollouts (amp_*, None = amp_humans' constants) and of
+        # the kinematic crowd (crowd_*): strengths > 0, ranges and ramps >= 0
+        for prefix, none in (("amp", "None or "), ("crowd", "")):
+            for suffix, ok, expected in (("strength", _is_pos, "> 0"), ("near_strength", _is_pos, "> 0"),
+                                         ("near_range", _is_non_negative, ">= 0 (0 = off)"),
+                                         ("near_ramp", _is_non_negative, ">= 0 (0 = a switch)")):
+                name = f"{prefix}_wall_{suffix}"
+                value = getattr(self, name)
+                if not ((none and value is None) or ok(value)):
+                    raise bad(name, f"{none}a finite number {expected}")
         if self.crowd_model not in CROWD_MODELS:
             raise bad("crowd_model", "'sfm', 'orca', 'orca_rvo2', 'diffusion' or 'replay'")
         self._validate_replay()
@@ -433,6 +426,10 @@ def _is_num(v: Any) -> bool:
 
 def _is_pos(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
+
+
+def _is_non_negative(v: Any) -> bool:
+    return _is_num(v) and v >= 0
 
 
 def parse_override(item: str) -> tuple[str, Any]:
