@@ -318,6 +318,26 @@ def test_softer_walls_near_others_of_the_target_rollouts_are_config_fields():
             NavConfig(human_model="amp", dt=DT, **{field: bad})
 
 
+def test_the_wall_margin_of_the_target_rollouts_is_a_config_field():
+    """``amp_wall_margin`` sets the margin that walls see in the social-force target rollouts (None: the module's
+    WALL_PLAN_MARGIN): a wider one keeps the targets further from the walls; bad values are refused by name."""
+    from navzoo.envs import amp_humans
+
+    clear = {}
+    for margin in (None, 0.25):
+        env = _raw(n_robots=0, n_humans=6, scene="grocery", amp_wall_margin=margin)
+        env.reset(seed=1)
+        assert env.amp.wall_margin == (amp_humans.WALL_PLAN_MARGIN if margin is None else 0.25)
+        for _ in range(30):
+            env.step({a: env.action_space(a).sample() * 0 for a in env.agents})
+        clear[margin] = env.scene.clearance(env.amp.paths.reshape(-1, 2))
+        env.close()
+    assert np.quantile(clear[0.25], 0.02) > np.quantile(clear[None], 0.02)
+    for bad in (-0.1, float("nan"), float("inf"), True, "0.2"):
+        with pytest.raises(ValueError, match="amp_wall_margin must be None or a finite number >= 0"):
+            NavConfig(human_model="amp", dt=DT, amp_wall_margin=bad)
+
+
 def test_the_wall_strength_of_the_target_rollouts_is_a_config_field():
     """``amp_wall_strength`` sets A_wall of the social-force target rollouts (None: the module's SFM_A_WALL);
     softer walls let the targets pass nearer the walls."""

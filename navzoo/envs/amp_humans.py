@@ -358,6 +358,8 @@ class AmpHumans:
                 "wall_near_ramp": (cfg.amp_wall_near_ramp, SFM_WALL_NEAR_RAMP)}
         self.walls = {"A_wall": self.a_wall, **{k: float(const if v is None else v) for k, (v, const) in near.items()}}
         self.sfm = SocialForceParams(**self.walls)
+        # margin on the radius that walls see in the social-force rollouts (NavConfig.amp_wall_margin)
+        self.wall_margin = float(WALL_PLAN_MARGIN if cfg.amp_wall_margin is None else cfg.amp_wall_margin)
         self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN, **self.walls)
         model = env.config.crowd_model
         self.orca = OrcaParams(right_bias=0.0, one_step_safety=False) if model == "orca_rvo2" else OrcaParams()
@@ -416,9 +418,9 @@ class AmpHumans:
                                                                  **self.walls)
         else:
             sf_rad, sf_params = rad, self.sfm
-        graded = GRADED_WALL_MARGIN and WALL_PLAN_MARGIN > 0.0 and env.config.crowd_model in ("sfm", "diffusion")
+        graded = GRADED_WALL_MARGIN and self.wall_margin > 0.0 and env.config.crowd_model in ("sfm", "diffusion")
         narrow = self.narrow_passages(paths, env.radius[h]) if graded else None
-        wall_rad = env.radius[h] + WALL_PLAN_MARGIN
+        wall_rad = env.radius[h] + self.wall_margin
         visible = [env.waypoint_visibility(i) for i in h]
         vmax = np.full(self.n, env.config.human_max_speed)
         if TARGET_SPEED_CAP > 0.0 and env.diffusion is None:
@@ -454,7 +456,7 @@ class AmpHumans:
             pref = env.crowd_conventions(pref, env.sim_time + k * PLAN_DT, pos, v_pref)
             o_pos = r_pos + (k * PLAN_DT) * r_vel
             if narrow is not None:
-                wall_rad = graded_wall_radius(pos, env.radius[h], WALL_PLAN_MARGIN, narrow)
+                wall_rad = graded_wall_radius(pos, env.radius[h], self.wall_margin, narrow)
             if env.config.crowd_model in ("sfm", "diffusion"):
                 vel = social_force_velocities(pos, vel, pref, sf_rad, vmax, PLAN_DT, sf_params, env.segments,
                                               others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
@@ -486,7 +488,7 @@ class AmpHumans:
         for j, path in enumerate(paths):
             key, value = self._narrow[j]
             if key is not path:
-                value = narrow_points(path, self.env.scene.clearance, float(radius[j]) + WALL_PLAN_MARGIN + DOOR_SLACK)
+                value = narrow_points(path, self.env.scene.clearance, float(radius[j]) + self.wall_margin + DOOR_SLACK)
                 self._narrow[j] = (path, value)
             out.append(value)
         return out

@@ -113,6 +113,10 @@ class NavConfig:
             distance down to ``amp_wall_near_range`` instead of switching (``SocialForceParams.wall_near_ramp``);
             None (default) = ``amp_humans.SFM_WALL_NEAR_RAMP`` (0, a switch). Range 1.5 with ramp 1.0 measured in
             docs/pedestrians.md, "A ramp instead of a switch".
+        amp_wall_margin: ``human_model="amp"``: margin (m) added to a person's radius for the walls of those
+            social-force target rollouts (the graded wall margin still shrinks it in narrow passages); None (default) =
+            ``navzoo.envs.amp_humans.WALL_PLAN_MARGIN`` (0.1). 0.2 cuts the trips with a wall contact by a third and
+            costs success (docs/pedestrians.md, "A wider wall margin for the target rollouts").
         crowd_wall_strength: wall potential strength (``SocialForceParams.A_wall``) of the social force that moves
             the kinematic crowd (``crowd_model`` "sfm", and the bodies of the "diffusion" crowd between its plans) when
             it runs on :class:`navzoo.agents.crowd.CrowdPolicy` without parameters of its own. 1.0 (default) =
@@ -207,6 +211,7 @@ class NavConfig:
     amp_wall_near_range: float | None = None
     amp_wall_near_strength: float | None = None
     amp_wall_near_ramp: float | None = None
+    amp_wall_margin: float | None = None
     crowd_wall_strength: float = 1.0
     crowd_wall_near_range: float = 0.0
     crowd_wall_near_strength: float = 0.3
@@ -278,6 +283,8 @@ class NavConfig:
                 value = getattr(self, name)
                 if not ((none and value is None) or ok(value)):
                     raise bad(name, f"{none}a finite number {expected}")
+        if not (self.amp_wall_margin is None or _is_non_negative(self.amp_wall_margin)):
+            raise bad("amp_wall_margin", "None or a finite number >= 0")
         if self.crowd_model not in CROWD_MODELS:
             raise bad("crowd_model", "'sfm', 'orca', 'orca_rvo2', 'diffusion' or 'replay'")
         self._validate_replay()
