@@ -1,4 +1,5 @@
-"""Trace the trips that time out in one scene of the following protocol: where, how fast, next to what.
+"""Trace the trips that time out or end in a fall in one scene of the following protocol: where, how fast,
+next to what.
 
     python scripts/amp_timeout_trace.py [--scene lobby] [--people 15] [--seconds 200] [--seed 0] \
         [--crowd sfm] [--bodies amp] [--set human_replan_blocked=amp ...]
@@ -11,6 +12,10 @@ that of its target point (AMP bodies; the target jumps back to the body at each 
 about lag / 2 s to its speed); the shares of the trip's steps spent under 0.25 m/s; the mean distance
 between body and target; the nearest other person and the number within 1 m at the end; the shares of
 steps with a wall or a person touching the body (AMP bodies); and the distance from the nearest obstacle.
+A trip that ends in a fall gets the same, over the last ``--fall-window`` seconds before the fall (2 s; keys
+``window_*``), and besides: how many other people were within 1 m over that window at most, whether the wall or
+person contact came first in the window (``first_contact``: ``wall``, ``person``, ``both`` or ``none``, and
+``first_contact_s`` before the fall).
 """
 
 from __future__ import annotations
@@ -35,6 +40,32 @@ def _value(text: str):
     return name, {"true": True, "false": False}.get(value.lower(), value)
 
 
+def fall_record(env, h: np.ndarray, j: int, pos: np.ndarray, tgt: np.ndarray, wall: np.ndarray, person: np.ndarray,
+                window: int, hz: float) -> dict:
+    """What happened to person ``j`` over the last ``window`` steps before its fall (arrays are (steps, people))."""
+    k0 = max(0, len(pos) - window)
+    p_, q_ = pos[k0:, j], tgt[k0:, j]
+    vp = np.linalg.norm(np.diff(p_, axis=0), axis=1) * hz if len(p_) > 1 else np.zeros(1)
+    d = np.linalg.norm(pos[k0:] - p_[:, None], axis=2)
+    d[:, j] = np.inf
+    w, a = wall[k0:, j], person[k0:, j]
+    first = {"wall": int(np.argmax(w)) if w.any() else None, "person": int(np.argmax(a)) if a.any() else None}
+    seen = [k for k in first.values() if k is not None]
+    if not seen:
+        kind, k = "none", None
+    else:
+        k = min(seen)
+        kind = "both" if first["wall"] == first["person"] else min((v, n) for n, v in first.items() if v is not None)[1]
+    return {"pos": env.pos[h][j].round(2).tolist(),
+            "obstacle_m": round(float(env.grid.distance_at(env.pos[h][j][None])[0]), 2),
+            "window_body_speed": round(float(vp.mean()), 2),
+            "window_lag_m": round(float(np.linalg.norm(p_ - q_, axis=1).mean()), 2),
+            "window_wall_contact": round(float(w.mean()), 2), "window_person_contact": round(float(a.mean()), 2),
+            "window_nearest_person_m": round(float(d.min()), 2) if d.shape[1] > 1 else None,
+            "window_max_within_1m": int((d < 1.0).sum(axis=1).max()),
+            "first_contact": kind, "first_contact_s": None if k is None else round((len(w) - k) / hz, 2)}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scene", default="lobby")
@@ -43,6 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--crowd", default="sfm", choices=("sfm", "orca", "diffusion"))
     ap.add_argument("--bodies", default="amp", choices=("amp", "kinematic"))
+    ap.add_argument("--fall-window", type=float, default=2.0, help="seconds before a fall that its record covers")
     ap.add_argument("--set", type=_value, action="append", default=[], metavar="NAME=VALUE",
                     help="a NavConfig field for the run (repeatable)")
     args = ap.parse_args(argv)
@@ -83,6 +115,9 @@ def main(argv: list[str] | None = None) -> int:
                     wall_contact=round(float(np.array(map_h[k0:])[:, j].mean()), 2),
                     person_contact=round(float(np.array(agent_h[k0:])[:, j].mean()), 2),
                     obstacle_m=round(float(env.grid.distance_at(env.pos[h][j][None])[0]), 2))
+            if outcome == "fall":
+                rec.update(fall_record(env, h, j, np.array(pos_h), np.array(tgt_h), np.array(map_h), np.array(agent_h),
+                                       int(round(args.fall_window * hz)), hz))
             print(json.dumps(rec), flush=True)
     wrapped.close()
     return 0
