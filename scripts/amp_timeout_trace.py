@@ -49,13 +49,13 @@ def fall_record(env, h: np.ndarray, j: int, pos: np.ndarray, tgt: np.ndarray, wa
     d = np.linalg.norm(pos[k0:] - p_[:, None], axis=2)
     d[:, j] = np.inf
     w, a = wall[k0:, j], person[k0:, j]
-    first = {"wall": int(np.argmax(w)) if w.any() else None, "person": int(np.argmax(a)) if a.any() else None}
-    seen = [k for k in first.values() if k is not None]
-    if not seen:
-        kind, k = "none", None
+    k_wall = int(np.argmax(w)) if w.any() else len(w)  # first step of each contact in the window (len: none)
+    k_person = int(np.argmax(a)) if a.any() else len(a)
+    k = min(k_wall, k_person)
+    if k == len(w):
+        kind = "none"
     else:
-        k = min(seen)
-        kind = "both" if first["wall"] == first["person"] else min((v, n) for n, v in first.items() if v is not None)[1]
+        kind = "both" if k_wall == k_person else "wall" if k_wall < k_person else "person"
     return {"pos": env.pos[h][j].round(2).tolist(),
             "obstacle_m": round(float(env.grid.distance_at(env.pos[h][j][None])[0]), 2),
             "window_body_speed": round(float(vp.mean()), 2),
@@ -63,7 +63,7 @@ def fall_record(env, h: np.ndarray, j: int, pos: np.ndarray, tgt: np.ndarray, wa
             "window_wall_contact": round(float(w.mean()), 2), "window_person_contact": round(float(a.mean()), 2),
             "window_nearest_person_m": round(float(d.min()), 2) if d.shape[1] > 1 else None,
             "window_max_within_1m": int((d < 1.0).sum(axis=1).max()),
-            "first_contact": kind, "first_contact_s": None if k is None else round((len(w) - k) / hz, 2)}
+            "first_contact": kind, "first_contact_s": None if kind == "none" else round((len(w) - k) / hz, 2)}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -78,6 +78,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--set", type=_value, action="append", default=[], metavar="NAME=VALUE",
                     help="a NavConfig field for the run (repeatable)")
     args = ap.parse_args(argv)
+    if not args.fall_window > 0:
+        ap.error(f"--fall-window must be > 0 s, got {args.fall_window}")
     wrapped, env = P._make(args.scene, args.people, args.bodies, args.seconds, args.seed, None, args.crowd,
                            env_overrides=dict(args.set))
     amp = env.amp is not None

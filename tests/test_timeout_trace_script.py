@@ -61,6 +61,15 @@ def test_a_fall_record_says_which_contact_came_first():
     assert rec["window_max_within_1m"] == 1 and rec["obstacle_m"] == 0.3
     person[30:, 0] = True
     assert trace.fall_record(env, h, 0, pos, tgt, wall, person, 20, hz)["first_contact"] == "both"
+    wall[:35, 0] = False  # the person contact now comes first
+    rec = trace.fall_record(env, h, 0, pos, tgt, wall, person, 20, hz)
+    assert rec["first_contact"] == "person" and rec["first_contact_s"] == round(10 / hz, 2)
     wall[:] = person[:] = False
     none = trace.fall_record(env, h, 0, pos, tgt, wall, person, 20, hz)
     assert none["first_contact"] == "none" and none["first_contact_s"] is None
+
+
+def test_a_window_that_is_not_positive_is_refused(capsys):
+    with pytest.raises(SystemExit):
+        trace.main(["--scene", "lobby", "--fall-window", "0"])
+    assert "--fall-window must be > 0 s, got 0.0" in capsys.readouterr().err

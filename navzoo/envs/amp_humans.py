@@ -358,9 +358,9 @@ class AmpHumans:
                 "wall_near_ramp": (cfg.amp_wall_near_ramp, SFM_WALL_NEAR_RAMP)}
         self.walls = {"A_wall": self.a_wall, **{k: float(const if v is None else v) for k, (v, const) in near.items()}}
         self.sfm = SocialForceParams(**self.walls)
+        self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN, **self.walls)
         # margin on the radius that walls see in the social-force rollouts (NavConfig.amp_wall_margin)
         self.wall_margin = float(WALL_PLAN_MARGIN if cfg.amp_wall_margin is None else cfg.amp_wall_margin)
-        self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN, **self.walls)
         model = env.config.crowd_model
         self.orca = OrcaParams(right_bias=0.0, one_step_safety=False) if model == "orca_rvo2" else OrcaParams()
         self._index = {b: j for j, b in enumerate(self.ids)}
