@@ -112,7 +112,7 @@ def draw(points: dict, settings: list, panels: list, paper: list[float] | None, 
 
     fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 4.4), squeeze=False)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for ax, (name, scenes) in zip(axes[0], panels):
+    for ax, (name, scenes) in zip(axes[0], panels, strict=True):
         for i, (label, _) in enumerate(settings):
             p = points[(label, name)]
             (x, dx), (y, dy) = p["map_contact"], p["success"]
