@@ -40,13 +40,22 @@ def _value(text: str):
     return name, {"true": True, "false": False}.get(value.lower(), value)
 
 
+def span_stats(pos: np.ndarray, tgt: np.ndarray, wall: np.ndarray, person: np.ndarray, j: int, hz: float) -> dict:
+    """Person ``j`` over a span of steps (arrays (steps, people, ...)): its mean speed, the share of steps under
+    0.25 m/s, its mean distance to its target, and the shares of steps with a wall or a person touching it."""
+    p_, q_ = pos[:, j], tgt[:, j]
+    vp = np.linalg.norm(np.diff(p_, axis=0), axis=1) * hz if len(p_) > 1 else np.zeros(1)
+    return {"body_speed": round(float(vp.mean()), 2), "body_slow": round(float((vp < 0.25).mean()), 2),
+            "lag_m": round(float(np.linalg.norm(p_ - q_, axis=1).mean()), 2),
+            "wall_contact": round(float(wall[:, j].mean()), 2), "person_contact": round(float(person[:, j].mean()), 2)}
+
+
 def fall_record(env, h: np.ndarray, j: int, pos: np.ndarray, tgt: np.ndarray, wall: np.ndarray, person: np.ndarray,
                 window: int, hz: float) -> dict:
     """What happened to person ``j`` over the last ``window`` steps before its fall (arrays are (steps, people))."""
     k0 = max(0, len(pos) - window)
-    p_, q_ = pos[k0:, j], tgt[k0:, j]
-    vp = np.linalg.norm(np.diff(p_, axis=0), axis=1) * hz if len(p_) > 1 else np.zeros(1)
-    d = np.linalg.norm(pos[k0:] - p_[:, None], axis=2)
+    span = span_stats(pos[k0:], tgt[k0:], wall[k0:], person[k0:], j, hz)
+    d = np.linalg.norm(pos[k0:] - pos[k0:, j][:, None], axis=2)
     d[:, j] = np.inf
     w, a = wall[k0:, j], person[k0:, j]
     k_wall = int(np.argmax(w)) if w.any() else len(w)  # first step of each contact in the window (len: none)
@@ -58,9 +67,7 @@ def fall_record(env, h: np.ndarray, j: int, pos: np.ndarray, tgt: np.ndarray, wa
         kind = "both" if k_wall == k_person else "wall" if k_wall < k_person else "person"
     return {"pos": env.pos[h][j].round(2).tolist(),
             "obstacle_m": round(float(env.grid.distance_at(env.pos[h][j][None])[0]), 2),
-            "window_body_speed": round(float(vp.mean()), 2),
-            "window_lag_m": round(float(np.linalg.norm(p_ - q_, axis=1).mean()), 2),
-            "window_wall_contact": round(float(w.mean()), 2), "window_person_contact": round(float(a.mean()), 2),
+            **{f"window_{k}": v for k, v in span.items() if k != "body_slow"},
             "window_nearest_person_m": round(float(d.min()), 2) if d.shape[1] > 1 else None,
             "window_max_within_1m": int((d < 1.0).sum(axis=1).max()),
             "first_contact": kind, "first_contact_s": None if kind == "none" else round((len(w) - k) / hz, 2)}
@@ -101,25 +108,24 @@ def main(argv: list[str] | None = None) -> int:
                    "limit_s": round(limit, 1)}
             if outcome == "timeout":
                 k0 = max(0, len(pos_h) - int(round(duration * hz)))
-                p_ = np.array(pos_h[k0:])[:, j]
-                q_ = np.array(tgt_h[k0:])[:, j]
-                vp = np.linalg.norm(np.diff(p_, axis=0), axis=1) * hz
-                vq = np.linalg.norm(np.diff(q_, axis=0), axis=1) * hz
+                span = span_stats(np.array(pos_h[k0:]), np.array(tgt_h[k0:]), np.array(map_h[k0:]),
+                                  np.array(agent_h[k0:]), j, hz)
+                vq = np.linalg.norm(np.diff(np.array(tgt_h[k0:])[:, j], axis=0), axis=1) * hz
                 d = np.linalg.norm(env.pos[h] - env.pos[h][j], axis=1)
                 d[j] = np.inf
                 rec.update(
                     pos=env.pos[h][j].round(2).tolist(), goal=env.goal[R + j].round(2).tolist(),
                     path_left_m=round(P.remaining_path_length(env, R + j), 2),
-                    body_speed=round(float(vp.mean()), 2), target_speed=round(float(vq.mean()), 2),
-                    body_slow=round(float((vp < 0.25).mean()), 2), target_slow=round(float((vq < 0.25).mean()), 2),
-                    lag_m=round(float(np.linalg.norm(p_ - q_, axis=1).mean()), 2),
+                    body_speed=span["body_speed"], target_speed=round(float(vq.mean()), 2),
+                    body_slow=span["body_slow"], target_slow=round(float((vq < 0.25).mean()), 2),
+                    lag_m=span["lag_m"],
                     nearest_person_m=round(float(d.min()), 2) if n > 1 else None, within_1m=int((d < 1.0).sum()),
-                    wall_contact=round(float(np.array(map_h[k0:])[:, j].mean()), 2),
-                    person_contact=round(float(np.array(agent_h[k0:])[:, j].mean()), 2),
+                    wall_contact=span["wall_contact"], person_contact=span["person_contact"],
                     obstacle_m=round(float(env.grid.distance_at(env.pos[h][j][None])[0]), 2))
-            if outcome == "fall":
-                rec.update(fall_record(env, h, j, np.array(pos_h), np.array(tgt_h), np.array(map_h), np.array(agent_h),
-                                       int(round(args.fall_window * hz)), hz))
+            if outcome == "fall":  # only the window's steps become arrays, not the whole run's
+                w = int(round(args.fall_window * hz))
+                rec.update(fall_record(env, h, j, np.array(pos_h[-w:]), np.array(tgt_h[-w:]), np.array(map_h[-w:]),
+                                       np.array(agent_h[-w:]), w, hz))
             print(json.dumps(rec), flush=True)
     wrapped.close()
     return 0

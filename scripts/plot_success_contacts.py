@@ -12,8 +12,8 @@ each seed's scene runs (trips counted together) into a success rate per time lim
 ``--setting LABEL=GLOB[;GLOB...]`` (repeatable) names one setting and its files; each setting's files must hold one
 row per scene and seed (``scripts/ablation_scene_weighted.py``'s rule). ``--scenes`` takes panels joined by ``/``
 (default ``protocol/heldout``: the 8 scenes of the protocol and the 10 held out), each ``protocol``, ``heldout`` or
-scene names joined by commas. ``--paper SUCCESS,MAP`` (percent) marks the paper's row in the first panel, whose
-scenes it compares with. Prints one JSON line per setting and panel (``seeds`` the seeds found, ``success`` and
+scene names joined by commas (:func:`navzoo.benchmark.pedestrians.scene_names`, which refuses unknown names).
+``--paper SUCCESS,MAP`` (percent) marks the paper's row in the first panel, whose scenes it compares with. Prints one JSON line per setting and panel (``seeds`` the seeds found, ``success`` and
 ``map_contact`` mean and standard error over them, in percent). A setting without rows of a panel's scenes on the
 chosen seeds is an error that names it. The plot in docs/ has its own command under it (docs/pedestrians.md, "Choosing
 the wall settings").
@@ -29,24 +29,12 @@ from pathlib import Path
 
 import numpy as np
 
-from navzoo.benchmark.pedestrians import HELDOUT_SCENES, SCENES, goal_trip_rates
+from navzoo.benchmark.pedestrians import goal_trip_rates, scene_names
 
 _SPEC = importlib.util.spec_from_file_location("ablation_scene_weighted",
                                                Path(__file__).resolve().parent / "ablation_scene_weighted.py")
 _weighted = importlib.util.module_from_spec(_SPEC)
 _SPEC.loader.exec_module(_weighted)
-
-
-def panel_scenes(text: str) -> tuple[str, ...]:
-    """``protocol``, ``heldout`` or scene names joined by commas."""
-    if text == "protocol":
-        return tuple(SCENES)
-    if text == "heldout":
-        return tuple(s for s, _ in HELDOUT_SCENES)
-    names = tuple(s for s in text.split(",") if s)
-    if not names:
-        raise ValueError(f"a panel needs 'protocol', 'heldout' or scene names, got {text!r}")
-    return names
 
 
 def parse_setting(text: str) -> tuple[str, list[str]]:
@@ -83,7 +71,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = ap.parse_args(argv)
     try:
         settings = [parse_setting(s) for s in args.setting]
-        panels = [(p, panel_scenes(p)) for p in args.scenes.split("/")]
+        panels = [(p, scene_names(p)) for p in args.scenes.split("/")]
         seeds = None if args.seeds is None else [int(s) for s in args.seeds.split(",")]
         paper = None if args.paper is None else [float(x) for x in args.paper.split(",")]
         if paper is not None and len(paper) != 2:
