@@ -14,7 +14,11 @@ touches an obstacle, with gaps shorter than ``GAP_S`` (0.5 s) bridged (contacts 
 - ``width_m``: the free width across the person's direction of motion, measured from the pelvis (rays of at most
   ``MAX_SIDE_M`` each side against the scene's obstacles), and ``passage``: ``door`` below ``DOOR_M``, ``passage``
   below ``PASSAGE_M``, else ``open``;
-- ``pelvis_wall_m``: the pelvis's distance from the nearest obstacle edge (``Scene.clearance``);
+- ``pelvis_wall_m`` / ``target_wall_m``: the distance of the pelvis / of the person's target point from the
+  nearest obstacle edge (``Scene.clearance``): what the body keeps from walls against what its target keeps;
+- ``corner_m``: the distance of the first contact point from the nearest exposed corner of an obstacle (a door
+  jamb's end, a shelf's corner: ``Scene.exposed_corners``), and ``where``:
+  ``corner`` within ``CORNER_M`` of one, else ``wall`` (along a flat side);
 - ``body_off_m``: how far the pelvis is from the middle of that width; ``target_off_m``: the same for the person's
   target point (``env.amp.target_now()``), measured across the same direction;
 - ``side_m`` / ``ahead_m``: where the first contact point lies from the pelvis, across and along the direction
@@ -22,7 +26,8 @@ touches an obstacle, with gaps shorter than ``GAP_S`` (0.5 s) bridged (contacts 
 - ``people_1m``: other people within 1 m; ``speed``: the body's speed over the last 0.2 s; ``fall``: the
   person fell during the event or within 2 s after it.
 
-The summary (printed, and under ``summary`` of ``--out``) counts events per passage class, the share of events
+The summary (printed, and under ``summary`` of ``--out``) counts events per passage class and per place (corner
+or flat side), the share of events
 whose first contact includes each body part, and the medians of the offsets. It says where bodies touch, not
 why a policy acts; the counts depend on the seed.
 """
@@ -51,6 +56,7 @@ MAX_SIDE_M = 3.0
 GAP_S = 0.5
 RAY_STEP_M = 0.02
 FALL_AFTER_S = 2.0
+CORNER_M = 0.25
 
 
 def side_distances(clearance, point: np.ndarray, direction: np.ndarray) -> tuple[float, float]:
@@ -95,8 +101,9 @@ def events_from_steps(touching: list[dict[int, frozenset]], gap: int = 0) -> lis
 def summarize(events: list[dict]) -> dict:
     """Counts and medians over contact events (records as in the module docstring)."""
     out: dict = {"events": len(events)}
-    for cls in ("door", "passage", "open", "all"):
-        sel = [e for e in events if cls == "all" or e["passage"] == cls]
+    for cls, key in (("door", "passage"), ("passage", "passage"), ("open", "passage"), ("corner", "where"),
+                     ("wall", "where"), ("all", None)):
+        sel = [e for e in events if key is None or e[key] == cls]
         if not sel:
             continue
         first = Counter(part for e in sel for part in e["first_links"])
@@ -104,6 +111,8 @@ def summarize(events: list[dict]) -> dict:
             "events": len(sel),
             "first_part_share": {part: round(first[part] / len(sel), 3) for part in PARTS if first[part]},
             "median_pelvis_wall_m": round(float(np.median([e["pelvis_wall_m"] for e in sel])), 3),
+            "median_target_wall_m": round(float(np.median([e["target_wall_m"] for e in sel])), 3),
+            "share_corner": round(float(np.mean([e["where"] == "corner" for e in sel])), 3),
             "median_body_off_m": round(float(np.median([e["body_off_m"] for e in sel])), 3),
             "median_target_off_m": round(float(np.median([e["target_off_m"] for e in sel])), 3),
             "median_side_m": round(float(np.median([abs(e["side_m"]) for e in sel])), 3),
@@ -127,6 +136,7 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, env_ov
         ids, client = env.amp.ids, env.amp.client
         names = {-1: "pelvis"} | {i: LINK_PART[p.getJointInfo(ids[0], i, physicsClientId=client)[12].decode()]
                                   for i in range(p.getNumJoints(ids[0], physicsClientId=client))}
+        corners = env.scene.exposed_corners()
         hz = 1.0 / env.config.dt
         back = max(int(round(0.2 * hz)), 1)
         touching: list[dict[int, frozenset]] = []
@@ -156,7 +166,10 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, env_ov
                     move = env.amp.target_now()[j] - pos[j]
                 d = move / max(np.linalg.norm(move), 1e-9)
                 lft, rgt = side_distances(env.scene.clearance, pos[j], d)
-                c0 = np.array(pts[0][5][:2]) - pos[j]
+                cp = np.array(pts[0][5][:2])
+                c0 = cp - pos[j]
+                corner = float(np.linalg.norm(corners - cp, axis=1).min()) if len(corners) else np.inf
+                tgt = env.amp.target_now()[j]
                 others = np.linalg.norm(pos - pos[j], axis=1)
                 others[j] = np.inf
                 first[(int(j), k)] = {
@@ -164,7 +177,9 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, env_ov
                     "width_m": round(lft + rgt, 2), "passage": passage_class(lft + rgt),
                     "pelvis_wall_m": round(float(env.scene.clearance(pos[j][None])[0]), 3),
                     "body_off_m": round(abs(lft - rgt) / 2, 3),
-                    "target_off_m": round(off_centre(env.scene.clearance, env.amp.target_now()[j], d), 3),
+                    "target_wall_m": round(float(env.scene.clearance(tgt[None])[0]), 3),
+                    "corner_m": round(corner, 3) if np.isfinite(corner) else None, "where": "corner" if corner < CORNER_M else "wall",
+                    "target_off_m": round(off_centre(env.scene.clearance, tgt, d), 3),
                     "side_m": round(float(c0 @ np.array([-d[1], d[0]])), 3), "ahead_m": round(float(c0 @ d), 3),
                     "people_1m": int((others < 1.0).sum()),
                     "speed": round(float(np.linalg.norm(move) * hz / back), 2) if np.linalg.norm(move) else 0.0,

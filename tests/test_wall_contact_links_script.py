@@ -42,7 +42,8 @@ def test_contact_runs_become_events_and_short_gaps_are_bridged():
 
 def test_the_summary_counts_first_parts_per_passage_class():
     def ev(passage, parts, off):
-        return {"passage": passage, "first_links": parts, "pelvis_wall_m": 0.3, "body_off_m": off,
+        return {"passage": passage, "where": "corner" if off < 0.2 else "wall", "first_links": parts,
+                "pelvis_wall_m": 0.3, "target_wall_m": 0.4, "body_off_m": off,
                 "target_off_m": 0.0, "side_m": -0.3, "ahead_m": 0.0, "people_1m": 0, "duration_s": 0.5,
                 "fall": False}
 
@@ -51,6 +52,7 @@ def test_the_summary_counts_first_parts_per_passage_class():
     assert s["door"]["events"] == 2 and s["door"]["first_part_share"] == {"hand": 1.0, "foot": 0.5}
     assert s["door"]["median_body_off_m"] == pytest.approx(0.2)
     assert s["all"]["first_part_share"]["foot"] == pytest.approx(0.667, abs=1e-3)
+    assert s["corner"]["events"] == 1 and s["wall"]["events"] == 2 and s["all"]["share_corner"] == pytest.approx(1 / 3, abs=1e-3)
 
 
 def test_a_short_run_names_the_parts_that_touch(tmp_path):
@@ -63,6 +65,8 @@ def test_a_short_run_names_the_parts_that_touch(tmp_path):
         assert set(e["first_links"]) <= set(e["links"]) <= set(links.PARTS) and e["first_links"]
         assert 0.0 < e["pelvis_wall_m"] < 1.0  # a body touching a wall has its pelvis near one, never inside
         assert e["passage"] == links.passage_class(e["width_m"]) and e["duration_s"] > 0
+        assert e["where"] == ("corner" if e["corner_m"] is not None and e["corner_m"] < links.CORNER_M else "wall")
+        assert e["target_wall_m"] > -0.05  # targets are planned outside the obstacles
     assert links.summarize(result["events"]) == result["summary"]
     assert links.main(["--summary", str(out)]) == 0
 

@@ -117,6 +117,10 @@ class NavConfig:
             social-force target rollouts (the graded wall margin still shrinks it in narrow passages); None (default) =
             ``navzoo.envs.amp_humans.WALL_PLAN_MARGIN`` (0.1). 0.2 cuts the trips with a wall contact by a third and
             costs success (docs/pedestrians.md, "A wider wall margin for the target rollouts").
+        amp_corner_margin: ``human_model="amp"``: extra margin (m) that the exposed corners of obstacles (door jambs,
+            shelf corners: ``Scene.exposed_corners``) keep from a person in those target rollouts, as a sideways push
+            only, so a target swings wide round a corner and centres in a door without being braked; None (default) =
+            ``navzoo.envs.amp_humans.CORNER_MARGIN`` (0, off). Measured in docs/pedestrians.md, "Corners".
         crowd_wall_strength: wall potential strength (``SocialForceParams.A_wall``) of the social force that moves
             the kinematic crowd (``crowd_model`` "sfm", and the bodies of the "diffusion" crowd between its plans) when
             it runs on :class:`navzoo.agents.crowd.CrowdPolicy` without parameters of its own. 1.0 (default) =
@@ -212,6 +216,7 @@ class NavConfig:
     amp_wall_near_strength: float | None = None
     amp_wall_near_ramp: float | None = None
     amp_wall_margin: float | None = None
+    amp_corner_margin: float | None = None
     crowd_wall_strength: float = 1.0
     crowd_wall_near_range: float = 0.0
     crowd_wall_near_strength: float = 0.3
@@ -285,6 +290,8 @@ class NavConfig:
                     raise bad(name, f"{none}a finite number {expected}")
         if not (self.amp_wall_margin is None or _is_non_negative(self.amp_wall_margin)):
             raise bad("amp_wall_margin", "None or a finite number >= 0")
+        if not (self.amp_corner_margin is None or _is_non_negative(self.amp_corner_margin)):
+            raise bad("amp_corner_margin", "None or a finite number >= 0")
         if self.crowd_model not in CROWD_MODELS:
             raise bad("crowd_model", "'sfm', 'orca', 'orca_rvo2', 'diffusion' or 'replay'")
         self._validate_replay()

@@ -639,6 +639,23 @@ class Scene:
             self._cache["polygons"] = [_readonly(o.polygon()) for o in self.obstacles]
         return list(self._cache["polygons"])
 
+    def exposed_corners(self, probe: float = 0.15) -> np.ndarray:
+        """Convex corners of the obstacles that a passer-by can cut, as a read-only ``(K, 2)`` array: the footprint
+        vertices with free space over more than half a turn around them (door jambs' ends, the corners of shelves
+        and tables), not those closed off by a neighbouring obstacle (where two walls meet). Each vertex is probed
+        at 8 points ``probe`` m around it; at least 5 must be outside every obstacle (``clearance`` > 0)."""
+        key = ("corners", float(probe))
+        if key not in self._cache:
+            polys = self.obstacle_polygons()
+            verts = np.concatenate([np.asarray(q, dtype=float) for q in polys]) if polys else np.zeros((0, 2))
+            if len(verts):
+                ang = np.arange(8) * np.pi / 4 + np.pi / 8
+                ring = probe * np.stack([np.cos(ang), np.sin(ang)], axis=1)
+                free = (self.clearance((verts[:, None] + ring[None]).reshape(-1, 2)) > 0).reshape(len(verts), 8)
+                verts = verts[free.sum(axis=1) >= 5]
+            self._cache[key] = _readonly(verts)
+        return self._cache[key]
+
     def wall_segments(self, include_bounds: bool = False) -> np.ndarray:
         """Every obstacle edge as a float64 ``(M, 2, 2)`` array (read-only).
 

@@ -235,3 +235,16 @@ def test_yaml_file_errors(tmp_path):
     noname.write_text("bounds: [0, 0, 1, 1]\n")
     with pytest.raises(SceneError, match="scene 'noname': missing required key 'name'"):
         load_scene(noname)
+
+
+def test_exposed_corners_are_the_convex_vertices_not_closed_off():
+    """A lone wall has four exposed corners; where a second wall abuts its middle (a T), the two vertices where they
+    meet are closed off and only the free ends count."""
+    lone = Scene(name="lone", bounds=(0, 0, 4, 4), obstacles=(BoxObstacle((2.0, 1.0), (2.0, 0.2)),))
+    assert {tuple(np.round(v, 2)) for v in lone.exposed_corners()} == {(1.0, 0.9), (3.0, 0.9), (1.0, 1.1), (3.0, 1.1)}
+    tee = Scene(name="tee", bounds=(0, 0, 4, 4),
+                obstacles=(BoxObstacle((2.0, 1.0), (2.0, 0.2)), BoxObstacle((2.0, 2.0), (0.2, 1.8))))
+    got = {tuple(np.round(v, 2)) for v in tee.exposed_corners()}
+    assert got == {(1.0, 0.9), (3.0, 0.9), (1.0, 1.1), (3.0, 1.1), (1.9, 2.9), (2.1, 2.9)}
+    assert Scene(name="empty", bounds=(0, 0, 4, 4)).exposed_corners().shape == (0, 2)
+    assert not lone.exposed_corners().flags.writeable
