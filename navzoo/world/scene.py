@@ -639,15 +639,23 @@ class Scene:
             self._cache["polygons"] = [_readonly(o.polygon()) for o in self.obstacles]
         return list(self._cache["polygons"])
 
-    def exposed_corners(self, probe: float = 0.15) -> np.ndarray:
+    def exposed_corners(self, probe: float = 0.15, min_turn: float = math.pi / 6) -> np.ndarray:
         """Convex corners of the obstacles that a passer-by can cut, as a read-only ``(K, 2)`` array: the footprint
-        vertices with free space over more than half a turn around them (door jambs' ends, the corners of shelves
-        and tables), not those closed off by a neighbouring obstacle (where two walls meet). Each vertex is probed
-        at 8 points ``probe`` m around it; at least 5 must be outside every obstacle (``clearance`` > 0)."""
-        key = ("corners", float(probe))
+        vertices where the outline turns by at least ``min_turn`` (30 degrees; so not the vertices of the 24-gons
+        that stand for round obstacles) and with free space over more than half a turn around them (door jambs'
+        ends, the corners of shelves and tables), not those closed off by a neighbouring obstacle (where two walls
+        meet). Each vertex is probed at 8 points ``probe`` m around it; at least 5 must be outside every obstacle
+        (``clearance`` > 0)."""
+        key = ("corners", float(probe), float(min_turn))
         if key not in self._cache:
-            polys = self.obstacle_polygons()
-            verts = np.concatenate([np.asarray(q, dtype=float) for q in polys]) if polys else np.zeros((0, 2))
+            sharp = []
+            for q in self.obstacle_polygons():
+                q = np.asarray(q, dtype=float)
+                e_in, e_out = q - np.roll(q, 1, axis=0), np.roll(q, -1, axis=0) - q
+                cos = np.sum(e_in * e_out, axis=1) / np.maximum(
+                    np.linalg.norm(e_in, axis=1) * np.linalg.norm(e_out, axis=1), 1e-12)
+                sharp.append(q[np.arccos(np.clip(cos, -1.0, 1.0)) >= min_turn])
+            verts = np.concatenate(sharp) if sharp else np.zeros((0, 2))
             if len(verts):
                 ang = np.arange(8) * np.pi / 4 + np.pi / 8
                 ring = probe * np.stack([np.cos(ang), np.sin(ang)], axis=1)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import yaml
 
-from navzoo.world.scene import BoxObstacle, Scene, SceneError, load_scene
+from navzoo.world.scene import BoxObstacle, CircleObstacle, Scene, SceneError, load_scene
 from tests.world.util import base_scene
 
 
@@ -247,4 +247,6 @@ def test_exposed_corners_are_the_convex_vertices_not_closed_off():
     got = {tuple(np.round(v, 2)) for v in tee.exposed_corners()}
     assert got == {(1.0, 0.9), (3.0, 0.9), (1.0, 1.1), (3.0, 1.1), (1.9, 2.9), (2.1, 2.9)}
     assert Scene(name="empty", bounds=(0, 0, 4, 4)).exposed_corners().shape == (0, 2)
+    pillar = Scene(name="pillar", bounds=(0, 0, 4, 4), obstacles=(CircleObstacle((2.0, 2.0), 0.4),))
+    assert pillar.exposed_corners().shape == (0, 2)  # a round obstacle has no corner to cut
     assert not lone.exposed_corners().flags.writeable
