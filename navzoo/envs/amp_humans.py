@@ -163,11 +163,13 @@ SFM_A_WALL = 1.0
 SFM_WALL_NEAR_RANGE = 0.0
 SFM_A_WALL_NEAR = 0.3
 SFM_WALL_NEAR_RAMP = 0.0
-# Bodies touch obstacles mostly at exposed corners (door jambs, shelf ends: 73 % of the wall-contact events of
-# social-force + AMP in four protocol scenes, seed 0), with the pelvis 0.29 m from the corner while its target keeps
-# 0.46 m: a body following a target round a corner cuts it (scripts/amp_wall_contact_links.py). CORNER_MARGIN > 0 (m)
+# Bodies touch obstacles mostly at exposed corners (door jambs, shelf ends: 65 % of the wall-contact events of
+# social-force + AMP in six protocol scenes, seed 0), with the pelvis 0.29 m from the corner while its target keeps
+# 0.45 m: a body following a target round a corner cuts it (scripts/amp_wall_contact_links.py). CORNER_MARGIN > 0 (m)
 # lets those corners push the target rollouts sideways as walls do at that much more margin (corner_steer), so
 # targets swing wide and centre in doors without being braked. 0 = off; NavConfig.amp_corner_margin overrides.
+# 0.15 m: wall-contact trips 8.8 -> 4.0 %, success 0.701 -> 0.620 (VM, seed 0; docs/pedestrians.md, "Corner steering
+# in the target rollouts"), the same trade as a wider wall margin.
 CORNER_MARGIN = 0.0
 CORNER_REACH = 1.0  # m: corners further than this from a rollout disc are not looked at
 

@@ -120,7 +120,8 @@ class NavConfig:
         amp_corner_margin: ``human_model="amp"``: extra margin (m) that the exposed corners of obstacles (door jambs,
             shelf corners: ``Scene.exposed_corners``) keep from a person in those target rollouts, as a sideways push
             only, so a target swings wide round a corner and centres in a door without being braked; None (default) =
-            ``navzoo.envs.amp_humans.CORNER_MARGIN`` (0, off). Measured in docs/pedestrians.md, "Corners".
+            ``navzoo.envs.amp_humans.CORNER_MARGIN`` (0, off). 0.15 halves the trips with a wall contact and costs
+            success as a wider wall margin does (docs/pedestrians.md, "Corner steering in the target rollouts").
         crowd_wall_strength: wall potential strength (``SocialForceParams.A_wall``) of the social force that moves
             the kinematic crowd (``crowd_model`` "sfm", and the bodies of the "diffusion" crowd between its plans) when
             it runs on :class:`navzoo.agents.crowd.CrowdPolicy` without parameters of its own. 1.0 (default) =
