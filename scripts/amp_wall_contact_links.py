@@ -161,9 +161,9 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, env_ov
                 prev = touching[-1] if touching else {}
                 if int(j) in prev:
                     continue
-                move = pos[j] - pos_hist[max(0, k - back)][j]
-                if np.linalg.norm(move) < 0.02:  # standing: the direction to its target instead
-                    move = env.amp.target_now()[j] - pos[j]
+                moved = pos[j] - pos_hist[max(0, k - back)][j]
+                # a standing body (under 2 cm in 0.2 s) faces the direction to its target instead
+                move = moved if np.linalg.norm(moved) >= 0.02 else env.amp.target_now()[j] - pos[j]
                 d = move / max(np.linalg.norm(move), 1e-9)
                 lft, rgt = side_distances(env.scene.clearance, pos[j], d)
                 cp = np.array(pts[0][5][:2])
@@ -182,7 +182,7 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, env_ov
                     "target_off_m": round(off_centre(env.scene.clearance, tgt, d), 3),
                     "side_m": round(float(c0 @ np.array([-d[1], d[0]])), 3), "ahead_m": round(float(c0 @ d), 3),
                     "people_1m": int((others < 1.0).sum()),
-                    "speed": round(float(np.linalg.norm(move) * hz / back), 2) if np.linalg.norm(move) else 0.0,
+                    "speed": round(float(np.linalg.norm(moved) * hz / back), 2),
                     "pos": pos[j].round(2).tolist(),
                 }
             touching.append(step)

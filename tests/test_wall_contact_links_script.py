@@ -67,6 +67,7 @@ def test_a_short_run_names_the_parts_that_touch(tmp_path):
         assert e["passage"] == links.passage_class(e["width_m"]) and e["duration_s"] > 0
         assert e["where"] == ("corner" if e["corner_m"] is not None and e["corner_m"] < links.CORNER_M else "wall")
         assert e["target_wall_m"] > -0.05  # targets are planned outside the obstacles
+        assert 0.0 <= e["speed"] < 3.0  # the body's own speed, also when it stands
     assert links.summarize(result["events"]) == result["summary"]
     assert links.main(["--summary", str(out)]) == 0
 

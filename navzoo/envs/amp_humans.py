@@ -290,9 +290,9 @@ def corner_steer(pos: np.ndarray, pref: np.ndarray, corners: np.ndarray, wall_ra
     ``(a_wall / b_wall) * (exp((r + margin - d) / b_wall) - exp((r - d) / b_wall))`` at distance ``d``; only the
     part across the disc's preferred direction is kept, and it enters the preferred velocity times ``tau``, as the
     social force's driving term ``(pref - v) / tau`` reads it; the result keeps the preferred speed (a corner turns
-    the preferred direction: it neither brakes nor hurries). Discs
-    standing still (zero ``pref``) are left alone; ``margin`` 0 changes nothing. Between two jambs the pushes
-    cancel on the door's middle line and point to it elsewhere."""
+    the preferred direction: it neither brakes nor hurries). Discs standing still (zero ``pref``) are left
+    alone; ``margin`` 0 changes nothing. Between two jambs the pushes cancel on the door's middle line and point to
+    it elsewhere."""
     pref = np.asarray(pref, dtype=float)
     if margin <= 0.0 or not len(corners) or not len(pos):
         return pref
