@@ -161,15 +161,15 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, env_ov
                 prev = touching[-1] if touching else {}
                 if int(j) in prev:
                     continue
+                tgt = env.amp.target_now()[j]
                 moved = pos[j] - pos_hist[max(0, k - back)][j]
                 # a standing body (under 2 cm in 0.2 s) faces the direction to its target instead
-                move = moved if np.linalg.norm(moved) >= 0.02 else env.amp.target_now()[j] - pos[j]
+                move = moved if np.linalg.norm(moved) >= 0.02 else tgt - pos[j]
                 d = move / max(np.linalg.norm(move), 1e-9)
                 lft, rgt = side_distances(env.scene.clearance, pos[j], d)
                 cp = np.array(pts[0][5][:2])
                 c0 = cp - pos[j]
                 corner = float(np.linalg.norm(corners - cp, axis=1).min()) if len(corners) else np.inf
-                tgt = env.amp.target_now()[j]
                 others = np.linalg.norm(pos - pos[j], axis=1)
                 others[j] = np.inf
                 first[(int(j), k)] = {
@@ -178,7 +178,8 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, env_ov
                     "pelvis_wall_m": round(float(env.scene.clearance(pos[j][None])[0]), 3),
                     "body_off_m": round(abs(lft - rgt) / 2, 3),
                     "target_wall_m": round(float(env.scene.clearance(tgt[None])[0]), 3),
-                    "corner_m": round(corner, 3) if np.isfinite(corner) else None, "where": "corner" if corner < CORNER_M else "wall",
+                    "corner_m": round(corner, 3) if np.isfinite(corner) else None,
+                    "where": "corner" if corner < CORNER_M else "wall",
                     "target_off_m": round(off_centre(env.scene.clearance, tgt, d), 3),
                     "side_m": round(float(c0 @ np.array([-d[1], d[0]])), 3), "ahead_m": round(float(c0 @ d), 3),
                     "people_1m": int((others < 1.0).sum()),

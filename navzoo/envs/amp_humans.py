@@ -501,10 +501,10 @@ class AmpHumans:
             o_pos = r_pos + (k * PLAN_DT) * r_vel
             if narrow is not None:
                 wall_rad = graded_wall_radius(pos, env.radius[h], self.wall_margin, narrow)
-            if len(self.corners) and env.config.crowd_model in ("sfm", "diffusion"):
-                pref = corner_steer(pos, pref, self.corners, wall_rad, self.corner_margin, self.a_wall,
-                                    sf_params.B_wall, sf_params.tau)
             if env.config.crowd_model in ("sfm", "diffusion"):
+                if len(self.corners):
+                    pref = corner_steer(pos, pref, self.corners, wall_rad, self.corner_margin, self.a_wall,
+                                        sf_params.B_wall, sf_params.tau)
                 vel = social_force_velocities(pos, vel, pref, sf_rad, vmax, PLAN_DT, sf_params, env.segments,
                                               others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
                                               segment_groups=env.segment_groups, wall_radius=wall_rad)
