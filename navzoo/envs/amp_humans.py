@@ -38,6 +38,7 @@ from navzoo.agents.orca import OrcaParams, orca_velocities
 from navzoo.agents.policy import preferred_velocity
 from navzoo.agents.sfm import SocialForceParams, social_force_velocities
 from navzoo.agents.target_paths import resample
+from navzoo.world.geometry import segment_point_distance, segment_segment_distance
 
 if TYPE_CHECKING:
     from navzoo.envs.nav_env import NavEnv
@@ -172,6 +173,14 @@ SFM_WALL_NEAR_RAMP = 0.0
 # in the target rollouts"), the same trade as a wider wall margin.
 CORNER_MARGIN = 0.0
 CORNER_REACH = 1.0  # m: corners further than this from a rollout disc are not looked at
+# The controller steers toward the next 5 s of its target (10 points), so round a corner it heads for points
+# behind the corner and cuts it. SIGHT_CLEARANCE > 0 (m) shows it only the points it can see: a target point
+# whose straight line from the pelvis passes closer to an obstacle than SIGHT_CLEARANCE (or than the pelvis and
+# the point themselves are, when nearer), and every later one, are replaced by the straight continuation of the
+# points before it (sight_waypoints). 0 = off; NavConfig.amp_sight_clearance overrides.
+SIGHT_CLEARANCE = 0.0
+SIGHT_SLACK = 0.02  # m: how much closer than pelvis and point a line must pass to count as hidden
+SIGHT_REACH = 0.0  # m: only points this close to the pelvis can be hidden (later ones follow the first hidden); 0 = all
 
 
 # Social force turns a disc toward a new direction as fast as its relaxation allows: at a trip's
@@ -313,6 +322,45 @@ def corner_steer(pos: np.ndarray, pref: np.ndarray, corners: np.ndarray, wall_ra
     return np.where(speed > 1e-9, turned, pref)
 
 
+def sight_waypoints(pos: np.ndarray, wps: np.ndarray, segments: np.ndarray, clearance: float,
+                    slack: float | None = None, reach: float | None = None) -> np.ndarray:
+    """The target points (H, K, 2) that bodies at ``pos`` (H, 2) can see, the hidden ones continued straight.
+
+    Point ``j`` of a body is hidden when the straight line from ``pos`` to it passes closer to a wall
+    ``segment`` than ``min(clearance, d(pos), d(point)) - slack`` (``d``: distance to the nearest segment), so a
+    body walking along a wall still sees the points along it. From the first hidden point ``f >= 1`` on, the
+    points are replaced by ``wps[f-1] + m * step`` (m = 1, 2, ...), ``step`` the last visible stretch
+    (``wps[f-1] - wps[f-2]``, or ``wps[0] - pos`` for ``f = 1``): the body walks on past the corner before it
+    turns. A hidden first point is left alone (nothing to continue); ``clearance`` 0 changes nothing."""
+    wps = np.asarray(wps, dtype=float)
+    if clearance <= 0.0 or not len(segments) or not len(pos):
+        return wps
+    slack = SIGHT_SLACK if slack is None else slack
+    reach = SIGHT_REACH if reach is None else reach
+    K = wps.shape[1]
+    seg = np.asarray(segments, dtype=float)
+    s_lo, s_hi = seg.min(axis=1), seg.max(axis=1)  # (S, 2) bounding boxes of the segments
+    out = wps.copy()
+    for i in range(len(pos)):
+        pts = np.concatenate([pos[i:i + 1], wps[i]])
+        lo, hi = pts.min(axis=0) - clearance, pts.max(axis=0) + clearance
+        near = seg[np.all((s_hi >= lo) & (s_lo <= hi), axis=1)]  # only segments a line could pass that close to
+        if not len(near):
+            continue
+        chords = np.stack([np.repeat(pos[i:i + 1], K, axis=0), wps[i]], axis=1)  # (K, 2, 2)
+        d_chord = segment_segment_distance(chords, near).min(axis=1)
+        d_ends = segment_point_distance(near, pts).min(axis=1)  # pelvis, then the K points
+        hidden = d_chord < np.minimum(np.minimum(clearance, d_ends[0]), d_ends[1:]) - slack
+        if reach > 0.0:
+            hidden &= np.linalg.norm(wps[i] - pos[i], axis=1) <= reach
+        if hidden[0] or not hidden.any():
+            continue
+        f = int(np.argmax(hidden))
+        step = wps[i, f - 1] - (wps[i, f - 2] if f >= 2 else pos[i])
+        out[i, f:] = wps[i, f - 1] + step * np.arange(1, K - f + 1)[:, None]
+    return out
+
+
 def passed(path: np.ndarray, k: int, pos: np.ndarray) -> bool:
     """Whether ``pos`` lies beyond waypoint ``k`` of ``path`` along the path's direction there (the
     direction from waypoint ``k - 1``, or ``k`` itself for the first, to waypoint ``k + 1``)."""
@@ -405,6 +453,8 @@ class AmpHumans:
         # extra margin that exposed corners keep, as a sideways push (NavConfig.amp_corner_margin; CORNER_MARGIN)
         self.corner_margin = float(CORNER_MARGIN if cfg.amp_corner_margin is None else cfg.amp_corner_margin)
         self.corners = env.scene.exposed_corners() if self.corner_margin > 0.0 else np.zeros((0, 2))
+        # target points hidden behind obstacles are shown continued straight (NavConfig.amp_sight_clearance)
+        self.sight_clearance = float(SIGHT_CLEARANCE if cfg.amp_sight_clearance is None else cfg.amp_sight_clearance)
         model = env.config.crowd_model
         self.orca = OrcaParams(right_bias=0.0, one_step_safety=False) if model == "orca_rvo2" else OrcaParams()
         self._index = {b: j for j, b in enumerate(self.ids)}
@@ -550,7 +600,10 @@ class AmpHumans:
         own[others] = np.arange(others.size)
         rays = obstacle_observation(s["root_pos"][:, :2], heading(s["root_quat"]), env.segments, env.pos[others],
                                     env.radius[others], self_disc=own[env.n_robots:])
-        return policy_observation(s, self.waypoints(), rays)
+        wps = self.waypoints()
+        if self.sight_clearance > 0.0:
+            wps = sight_waypoints(s["root_pos"][:, :2], wps, env.segments, self.sight_clearance)
+        return policy_observation(s, wps, rays)
 
     def set_actions(self, actions: np.ndarray) -> None:
         sph, rev = actions_to_targets(np.clip(np.asarray(actions, dtype=np.float64), -1.0, 1.0))

@@ -122,6 +122,11 @@ class NavConfig:
             only, so a target swings wide round a corner and centres in a door without being braked; None (default) =
             ``navzoo.envs.amp_humans.CORNER_MARGIN`` (0, off). 0.15 halves the trips with a wall contact and costs
             success as a wider wall margin does (docs/pedestrians.md, "Corner steering in the target rollouts").
+        amp_sight_clearance: ``human_model="amp"``: the controller sees only the target points that a straight line
+            from the pelvis reaches with this clearance (m) from obstacles; the points behind a corner are shown
+            continued straight, so the body walks past the corner before it turns
+            (``navzoo.envs.amp_humans.sight_waypoints``); None (default) = ``amp_humans.SIGHT_CLEARANCE`` (0, off)
+            (docs/pedestrians.md, "Target points in sight of the body").
         crowd_wall_strength: wall potential strength (``SocialForceParams.A_wall``) of the social force that moves
             the kinematic crowd (``crowd_model`` "sfm", and the bodies of the "diffusion" crowd between its plans) when
             it runs on :class:`navzoo.agents.crowd.CrowdPolicy` without parameters of its own. 1.0 (default) =
@@ -218,6 +223,7 @@ class NavConfig:
     amp_wall_near_ramp: float | None = None
     amp_wall_margin: float | None = None
     amp_corner_margin: float | None = None
+    amp_sight_clearance: float | None = None
     crowd_wall_strength: float = 1.0
     crowd_wall_near_range: float = 0.0
     crowd_wall_near_strength: float = 0.3
@@ -293,6 +299,8 @@ class NavConfig:
             raise bad("amp_wall_margin", "None or a finite number >= 0")
         if not (self.amp_corner_margin is None or _is_non_negative(self.amp_corner_margin)):
             raise bad("amp_corner_margin", "None or a finite number >= 0")
+        if not (self.amp_sight_clearance is None or _is_non_negative(self.amp_sight_clearance)):
+            raise bad("amp_sight_clearance", "None or a finite number >= 0")
         if self.crowd_model not in CROWD_MODELS:
             raise bad("crowd_model", "'sfm', 'orca', 'orca_rvo2', 'diffusion' or 'replay'")
         self._validate_replay()
