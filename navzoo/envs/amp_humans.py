@@ -331,7 +331,8 @@ def sight_waypoints(pos: np.ndarray, wps: np.ndarray, segments: np.ndarray, clea
     body walking along a wall still sees the points along it. From the first hidden point ``f >= 1`` on, the
     points are replaced by ``wps[f-1] + m * step`` (m = 1, 2, ...), ``step`` the last visible stretch
     (``wps[f-1] - wps[f-2]``, or ``wps[0] - pos`` for ``f = 1``): the body walks on past the corner before it
-    turns. A hidden first point is left alone (nothing to continue); ``clearance`` 0 changes nothing."""
+    turns. When the first point is hidden, all are left as they are (nothing to continue from); ``clearance`` 0
+    changes nothing."""
     wps = np.asarray(wps, dtype=float)
     if clearance <= 0.0 or not len(segments) or not len(pos):
         return wps
