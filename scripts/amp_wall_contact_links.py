@@ -28,7 +28,8 @@ touches an obstacle, with gaps shorter than ``GAP_S`` (0.5 s) bridged (contacts 
 
 The summary (printed, and under ``summary`` of ``--out``) counts events per passage class and per place (corner
 or flat side), the share of events
-whose first contact includes each body part, and the medians of the offsets. It says where bodies touch, not
+whose first contact includes each body part, the medians of the offsets, and the body's speed at the first step
+(quartiles, and the share below ``SLOW``). It says where bodies touch, not
 why a policy acts; the counts depend on the seed.
 """
 
@@ -57,6 +58,7 @@ GAP_S = 0.5
 RAY_STEP_M = 0.02
 FALL_AFTER_S = 2.0
 CORNER_M = 0.25
+SLOW = 0.3  # m/s: a body below this speed at an event's first step counts as slow (``share_slow``)
 
 
 def side_distances(clearance, point: np.ndarray, direction: np.ndarray) -> tuple[float, float]:
@@ -119,6 +121,8 @@ def summarize(events: list[dict]) -> dict:
             "share_ahead": round(float(np.mean([e["ahead_m"] > 0.15 for e in sel])), 3),
             "share_people_1m": round(float(np.mean([e["people_1m"] > 0 for e in sel])), 3),
             "median_duration_s": round(float(np.median([e["duration_s"] for e in sel])), 2),
+            "speed_quartiles": [round(float(q), 2) for q in np.quantile([e["speed"] for e in sel], [0.25, 0.5, 0.75])],
+            "share_slow": round(float(np.mean([e["speed"] < SLOW for e in sel])), 3),
             "falls": int(sum(e["fall"] for e in sel)),
         }
     return out
