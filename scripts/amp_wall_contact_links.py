@@ -23,13 +23,16 @@ touches an obstacle, with gaps shorter than ``GAP_S`` (0.5 s) bridged (contacts 
   target point (``env.amp.target_now()``), measured across the same direction;
 - ``side_m`` / ``ahead_m``: where the first contact point lies from the pelvis, across and along the direction
   of motion;
-- ``people_1m``: other people within 1 m; ``speed``: the body's speed over the last 0.2 s; ``fall``: the
-  person fell during the event or within 2 s after it.
+- ``people_1m``: other people within 1 m; ``speed``: the body's speed over the last 0.2 s; ``target_speed``: the
+  pace its target asks for over the next 0.5 s (target point to the first observed point); ``target_m``: pelvis to
+  target point; ``goal_m``: pelvis to the person's current goal; ``fall``: the person fell during the event or
+  within 2 s after it.
 
 The summary (printed, and under ``summary`` of ``--out``) counts events per passage class and per place (corner
 or flat side), the share of events
 whose first contact includes each body part, the medians of the offsets, and the body's speed at the first step
-(quartiles, and the share below ``SLOW``). It says where bodies touch, not
+(quartiles, and the share below ``SLOW``; of those slow events, the share whose target stands too, the share near
+the goal, and their median distance to the target). It says where bodies touch, not
 why a policy acts; the counts depend on the seed.
 """
 
@@ -59,6 +62,7 @@ RAY_STEP_M = 0.02
 FALL_AFTER_S = 2.0
 CORNER_M = 0.25
 SLOW = 0.3  # m/s: a body below this speed at an event's first step counts as slow (``share_slow``)
+NEAR_GOAL_M = 1.0  # m: a slow event this close to the person's goal counts as near it
 
 
 def side_distances(clearance, point: np.ndarray, direction: np.ndarray) -> tuple[float, float]:
@@ -100,6 +104,16 @@ def events_from_steps(touching: list[dict[int, frozenset]], gap: int = 0) -> lis
     return sorted(events, key=lambda e: (e[1], e[0]))
 
 
+def _slow_split(slow: list[dict]) -> dict:
+    """Of the slow events: the share whose target stands too (``target_speed`` below ``SLOW``), the share within
+    ``NEAR_GOAL_M`` of the goal, and the median distance to the target (files from before these fields: {})."""
+    if not slow or "target_speed" not in slow[0]:
+        return {}
+    return {"slow_share_target_still": round(float(np.mean([e["target_speed"] < SLOW for e in slow])), 3),
+            "slow_share_near_goal": round(float(np.mean([e["goal_m"] < NEAR_GOAL_M for e in slow])), 3),
+            "slow_median_target_m": round(float(np.median([e["target_m"] for e in slow])), 3)}
+
+
 def summarize(events: list[dict]) -> dict:
     """Counts and medians over contact events (records as in the module docstring)."""
     out: dict = {"events": len(events)}
@@ -123,6 +137,7 @@ def summarize(events: list[dict]) -> dict:
             "median_duration_s": round(float(np.median([e["duration_s"] for e in sel])), 2),
             "speed_quartiles": [round(float(q), 2) for q in np.quantile([e["speed"] for e in sel], [0.25, 0.5, 0.75])],
             "share_slow": round(float(np.mean([e["speed"] < SLOW for e in sel])), 3),
+            **_slow_split([e for e in sel if e["speed"] < SLOW]),
             "falls": int(sum(e["fall"] for e in sel)),
         }
     return out
@@ -132,6 +147,7 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, env_ov
     import pybullet as p
 
     from navzoo.benchmark import pedestrians as P
+    from navzoo.envs.amp_humans import WAYPOINT_DT
     from navzoo.torch_threads import one_torch_thread
 
     with one_torch_thread():
@@ -188,6 +204,9 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, env_ov
                     "side_m": round(float(c0 @ np.array([-d[1], d[0]])), 3), "ahead_m": round(float(c0 @ d), 3),
                     "people_1m": int((others < 1.0).sum()),
                     "speed": round(float(np.linalg.norm(moved) * hz / back), 2),
+                    "target_speed": round(float(np.linalg.norm(env.amp.waypoints()[j, 0] - tgt) / WAYPOINT_DT), 2),
+                    "target_m": round(float(np.linalg.norm(tgt - pos[j])), 3),
+                    "goal_m": round(float(np.linalg.norm(env.goal[env.n_robots + j] - pos[j])), 2),
                     "pos": pos[j].round(2).tolist(),
                 }
             touching.append(step)

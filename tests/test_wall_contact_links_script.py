@@ -45,12 +45,14 @@ def test_the_summary_counts_first_parts_per_passage_class():
         return {"passage": passage, "where": "corner" if off < 0.2 else "wall", "first_links": parts,
                 "pelvis_wall_m": 0.3, "target_wall_m": 0.4, "body_off_m": off,
                 "target_off_m": 0.0, "side_m": -0.3, "ahead_m": 0.0, "people_1m": 0, "duration_s": 0.5,
-                "fall": False, "speed": off}
+                "fall": False, "speed": off, "target_speed": 1.0 - off, "target_m": off, "goal_m": 2.0 * off}
 
     s = links.summarize([ev("door", ["hand"], 0.1), ev("door", ["foot", "hand"], 0.3), ev("open", ["foot"], 1.0)])
     assert s["events"] == 3 and "passage" not in s
     assert s["door"]["events"] == 2 and s["door"]["first_part_share"] == {"hand": 1.0, "foot": 0.5}
     assert s["door"]["median_body_off_m"] == pytest.approx(0.2)
+    assert s["door"]["slow_share_target_still"] == 0.0 and s["door"]["slow_median_target_m"] == pytest.approx(0.1)
+    assert s["all"]["slow_share_near_goal"] == 1.0  # the one slow event (0.1 m/s) is 0.2 m from its goal
     assert s["door"]["share_slow"] == pytest.approx(0.5) and s["all"]["speed_quartiles"] == pytest.approx([0.2, 0.3, 0.65])
     assert s["all"]["first_part_share"]["foot"] == pytest.approx(0.667, abs=1e-3)
     assert s["corner"]["events"] == 1 and s["wall"]["events"] == 2 and s["all"]["share_corner"] == pytest.approx(1 / 3, abs=1e-3)
@@ -69,6 +71,7 @@ def test_a_short_run_names_the_parts_that_touch(tmp_path):
         assert e["where"] == ("corner" if e["corner_m"] is not None and e["corner_m"] < links.CORNER_M else "wall")
         assert e["target_wall_m"] > -0.05  # targets are planned outside the obstacles
         assert 0.0 <= e["speed"] < 3.0  # the body's own speed, also when it stands
+        assert 0.0 <= e["target_speed"] < 2.5 and 0.0 <= e["target_m"] < 2.0 and e["goal_m"] >= 0.0
     assert links.summarize(result["events"]) == result["summary"]
     assert links.main(["--summary", str(out)]) == 0
 
