@@ -78,7 +78,8 @@ PASSAGE_REACH = 1.0  # m
 # target 2 m away and falls (corridor, 6 people: first target point p99 2.1 m from the body with
 # diffusion plans against 1.0 m with social-force rollouts, which start from the body and see the others).
 # With diffusion plans the target's current point therefore runs at most LAG_LIMIT_S ahead of the point
-# of the plan nearest to the body (progress_index).
+# of the plan nearest to the body (progress_index). 0.15 s and 0.5 s both succeed less with social-force targets
+# (0.630 and 0.641 per limit against 0.711, seeds 0-1, VM; docs/pedestrians.md "How far the target may lead the body").
 LAG_LIMIT_S = 0.3
 # Social-force and ORCA rollouts start from the body at every replan (2 s); without a limit their targets run
 # by time alone. LAG_LIMIT_RULES = True holds them to the same LAG_LIMIT_S lead over the body as diffusion
