@@ -32,7 +32,7 @@ The summary (printed, and under ``summary`` of ``--out``) counts events per pass
 or flat side), the share of events
 whose first contact includes each body part, the medians of the offsets, and the body's speed at the first step
 (quartiles, and the share below ``SLOW``; of those slow events, the share whose target stands too, the share near
-the goal, and their median distance to the target). It says where bodies touch, not
+the goal, their median distance to the target and the share with someone within 1 m). It says where bodies touch, not
 why a policy acts; the counts depend on the seed.
 """
 
@@ -106,12 +106,14 @@ def events_from_steps(touching: list[dict[int, frozenset]], gap: int = 0) -> lis
 
 def _slow_split(slow: list[dict]) -> dict:
     """Of the slow events: the share whose target stands too (``target_speed`` below ``SLOW``), the share within
-    ``NEAR_GOAL_M`` of the goal, and the median distance to the target (files from before these fields: {})."""
+    ``NEAR_GOAL_M`` of the goal, the median distance to the target and the share with someone within 1 m (files from
+    before these fields: {})."""
     if not slow or "target_speed" not in slow[0]:
         return {}
     return {"slow_share_target_still": round(float(np.mean([e["target_speed"] < SLOW for e in slow])), 3),
             "slow_share_near_goal": round(float(np.mean([e["goal_m"] < NEAR_GOAL_M for e in slow])), 3),
-            "slow_median_target_m": round(float(np.median([e["target_m"] for e in slow])), 3)}
+            "slow_median_target_m": round(float(np.median([e["target_m"] for e in slow])), 3),
+            "slow_share_people_1m": round(float(np.mean([e["people_1m"] > 0 for e in slow])), 3)}
 
 
 def summarize(events: list[dict]) -> dict:

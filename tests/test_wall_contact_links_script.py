@@ -52,6 +52,7 @@ def test_the_summary_counts_first_parts_per_passage_class():
     assert s["door"]["events"] == 2 and s["door"]["first_part_share"] == {"hand": 1.0, "foot": 0.5}
     assert s["door"]["median_body_off_m"] == pytest.approx(0.2)
     assert s["door"]["slow_share_target_still"] == 0.0 and s["door"]["slow_median_target_m"] == pytest.approx(0.1)
+    assert s["all"]["slow_share_people_1m"] == 0.0
     assert s["all"]["slow_share_near_goal"] == 1.0  # the one slow event (0.1 m/s) is 0.2 m from its goal
     assert s["door"]["share_slow"] == pytest.approx(0.5) and s["all"]["speed_quartiles"] == pytest.approx([0.2, 0.3, 0.65])
     assert s["all"]["first_part_share"]["foot"] == pytest.approx(0.667, abs=1e-3)
