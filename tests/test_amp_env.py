@@ -282,6 +282,38 @@ def test_the_optional_stance_reward_charges_the_running_mean_of_the_feet_split_p
             NavConfig(human_model="amp", dt=DT, amp_stance_reward=bad)
 
 
+def test_the_optional_wall_contact_reward_charges_each_step_a_body_touches_a_scene_obstacle():
+    import pybullet as p
+
+    envs = [_raw(n_robots=0, n_humans=1, max_episode_steps_override=60),
+            _raw(n_robots=0, n_humans=1, max_episode_steps_override=60, amp_wall_contact_reward=2.0)]
+    obs = [e.reset(seed=1)[0] for e in envs]
+    (agent,) = obs[0]
+    act = {agent: np.zeros(ACT_DIM, dtype=np.float32)}
+    # a step in the open: no contact, nothing charged, and the term is logged whatever the weight
+    (_, r0, *_, i0), (_, r1, *_, i1) = (e.step(act) for e in envs)
+    assert i0[agent]["map_contact"] is i1[agent]["map_contact"] is False
+    assert i0[agent]["reward/wall_contact"] == i1[agent]["reward/wall_contact"] == 0.0
+    assert r1[agent] == pytest.approx(r0[agent], abs=1e-9)
+    # the body put with its pelvis 5 cm inside the edge of a scene obstacle: touching it, charged 2 per step
+    for e in envs:
+        wall = next(b for b, kind in e._body_kind.items() if kind == "obstacle")
+        lo, hi = p.getAABB(wall, physicsClientId=e.client)
+        body = e.amp.ids[0]
+        pos, orn = p.getBasePositionAndOrientation(body, physicsClientId=e.client)
+        p.resetBasePositionAndOrientation(body, [lo[0] + 0.05, (lo[1] + hi[1]) / 2, pos[2]], orn,
+                                          physicsClientId=e.client)
+    (_, r0, *_, i0), (_, r1, *_, i1) = (e.step(act) for e in envs)
+    assert i0[agent]["map_contact"] is i1[agent]["map_contact"] is True
+    assert i0[agent]["reward/wall_contact"] == i1[agent]["reward/wall_contact"] == -1.0
+    assert r1[agent] == pytest.approx(r0[agent] - 2.0, abs=1e-6)
+    for e in envs:
+        e.close()
+    for bad in (-1.0, float("inf"), False, None):
+        with pytest.raises(ValueError, match="amp_wall_contact_reward"):
+            NavConfig(human_model="amp", dt=DT, amp_wall_contact_reward=bad)
+
+
 def test_follow_scene_runs_on_one_torch_thread_and_gives_the_callers_back(monkeypatch):
     """One torch thread whoever calls it, so ``--workers 1`` and pool workers sum floats alike (a two-thread
     inline run walked other trips than the pool's single-thread runs of the same seed)."""

@@ -145,6 +145,11 @@ class NavConfig:
             whatever the weight; the mean starts at 0 at each reset). Walking alternates the feet, so the mean stays near 0 (the reference clips: 0.069 m on
             average); a split stance (one foot kept ahead, docs/pedestrians.md, "Where the realism gap
             lies") holds it at about 0.5 m. 0 (default) = the paper's reward.
+        amp_wall_contact_reward: ``human_model="amp"``: weight of a wall-contact term added to the pedestrians'
+            task reward: -1 while any link of the body touches a scene obstacle (the contact of the step's last
+            physics step, the one ``info["map_contact"]`` reports), else 0 (``info["reward/wall_contact"]``, logged
+            whatever the weight). For training the controller to keep its hands and feet off walls and furniture
+            (docs/pedestrians.md, "A wall-contact term in scene training"). 0 (default) = the paper's reward.
         time_limit: episode length (s); ``None`` = the scene's own limit.
         goal_tolerance: a robot reaches its goal when closer than this (m); ``None`` = robot radius
             (CrowdNav's rule, as the paper's reward).
@@ -217,6 +222,7 @@ class NavConfig:
     amp_replan_seconds: float = 2.0
     amp_progress_reward: float = 0.0
     amp_stance_reward: float = 0.0
+    amp_wall_contact_reward: float = 0.0
     amp_wall_strength: float | None = None
     amp_wall_near_range: float | None = None
     amp_wall_near_strength: float | None = None
@@ -282,9 +288,10 @@ class NavConfig:
         if (isinstance(self.amp_progress_reward, bool) or not isinstance(self.amp_progress_reward, int | float)
                 or not math.isfinite(self.amp_progress_reward) or self.amp_progress_reward < 0):
             raise bad("amp_progress_reward", "a finite number >= 0")
-        if (isinstance(self.amp_stance_reward, bool) or not isinstance(self.amp_stance_reward, int | float)
-                or not math.isfinite(self.amp_stance_reward) or self.amp_stance_reward < 0):
-            raise bad("amp_stance_reward", "a finite number >= 0")
+        for name in ("amp_stance_reward", "amp_wall_contact_reward"):
+            w = getattr(self, name)
+            if isinstance(w, bool) or not isinstance(w, int | float) or not math.isfinite(w) or w < 0:
+                raise bad(name, "a finite number >= 0")
         # the wall settings of the physics pedestrians' target rollouts (amp_*, None = amp_humans' constants) and of
         # the kinematic crowd (crowd_*): strengths > 0, ranges and ramps >= 0
         for prefix, none in (("amp", "None or "), ("crowd", "")):

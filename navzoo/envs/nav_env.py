@@ -646,6 +646,9 @@ class NavEnv(ParallelEnv):
                 rew[hum] += self.config.amp_progress_reward * amp_terms["path_progress"]
             if self.config.amp_stance_reward:
                 rew[hum] += self.config.amp_stance_reward * amp_terms["stance"]
+            amp_terms["wall_contact"] = -self.human_map_contact.astype(float)
+            if self.config.amp_wall_contact_reward:
+                rew[hum] += self.config.amp_wall_contact_reward * amp_terms["wall_contact"]
         if self.replay is not None and hum.size:  # replayed people do not act: nothing to reward
             rew[hum] = 0.0
             for name in TERMS:
@@ -711,7 +714,8 @@ class NavEnv(ParallelEnv):
                     info["map_contact"] = bool(self.human_map_contact[j])
                     info["agent_contact"] = bool(self.human_agent_contact[j])
                     info["robot_contact"] = bool(self.human_robot_contact[j])
-                    for name in ("track", "energy", "direction", "path_progress", "stance", "path_error"):
+                    for name in ("track", "energy", "direction", "path_progress", "stance", "wall_contact",
+                                 "path_error"):
                         if name in amp_terms:
                             info[f"reward/{name}" if name != "path_error" else name] = float(amp_terms[name][j])
             if nan_state:
