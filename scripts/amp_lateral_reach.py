@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from navzoo.agents.amp.features import KEY_BODY_NAMES, heading
+from navzoo.benchmark.pedestrians import parse_scene_counts
 
 BANDS = ((0.0, 0.3), (0.3, 0.8), (0.8, 9.0))  # m/s
 HANDS = [KEY_BODY_NAMES.index("right_hand"), KEY_BODY_NAMES.index("left_hand")]
@@ -112,12 +113,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--policy", default=None, help="exported policy directory (default: the shipped one)")
     ap.add_argument("--out", default=None)
     args = ap.parse_args(argv)
-    scenes = []
-    for item in args.scenes.split(","):
-        name, _, n = item.partition(":")
-        if not name or not n.isdigit() or int(n) < 1:
-            ap.error(f"--scenes takes scene:pedestrians items, got {item!r}")
-        scenes.append((name, int(n)))
+    try:
+        scenes = parse_scene_counts(args.scenes)
+    except ValueError as e:
+        ap.error(str(e))
     if args.seconds <= 1.0:
         ap.error(f"--seconds must be > 1 (the first second is skipped), got {args.seconds}")
     if args.policy is not None and not Path(args.policy, "config.json").is_file():

@@ -35,7 +35,7 @@ import numpy as np
 
 from navzoo.agents.amp.tracking import load_motions, track_clips
 from navzoo.benchmark import realism
-from navzoo.benchmark.pedestrians import _make, body_keypoints
+from navzoo.benchmark.pedestrians import _make, body_keypoints, parse_scene_counts
 
 KEYS = ("coverage_k50", "entropy_k50", "coverage_k100", "entropy_k100", "mmd")
 
@@ -52,13 +52,10 @@ def parse_bands(text: str) -> list[float]:
 
 
 def parse_scenes(text: str) -> list[tuple[str, int]]:
-    out = []
-    for item in text.split(","):
-        name, _, n = item.partition(":")
-        if not name or not n.isdigit() or int(n) < 1:
-            raise SystemExit(f"--scenes: {item!r} is not SCENE:PEOPLE (e.g. lobby:15)")
-        out.append((name, int(n)))
-    return out
+    try:
+        return parse_scene_counts(text)
+    except ValueError as e:
+        raise SystemExit(str(e)) from None
 
 
 def parse_source(text: str) -> tuple[str, str | None]:

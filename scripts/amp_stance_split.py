@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from navzoo.agents.amp.features import STANCE_FREE_M, STANCE_TAU_S, foot_split
-from navzoo.benchmark.pedestrians import _make
+from navzoo.benchmark.pedestrians import _make, parse_scene_counts
 from navzoo.envs.amp_humans import CONTROL_HZ
 
 
@@ -91,12 +91,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-clips", action="store_true", help="skip the reference clips' row")
     ap.add_argument("--out", default=None)
     args = ap.parse_args(argv)
-    scenes = []
-    for item in args.scenes.split(","):
-        name, _, n = item.partition(":")
-        if not name or not n.isdigit() or int(n) < 1:
-            ap.error(f"--scenes takes scene:pedestrians items, got {item!r}")
-        scenes.append((name, int(n)))
+    try:
+        scenes = parse_scene_counts(args.scenes)
+    except ValueError as e:
+        ap.error(str(e))
     sources = []
     for src in args.source:
         label, sep, path = src.partition("=")

@@ -1,5 +1,7 @@
 """navzoo eval pedestrians --seeds: the following protocol over several seeds (navzoo.benchmark.pedestrians)."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -220,3 +222,12 @@ def test_scene_runs_count_the_person_time_in_contact():
     assert m["agent_contact_time"] == pytest.approx(2 * people / (2 * standing + 40))
     old = {k: v for k, v in row.items() if k != "contact_steps"}  # a row resumed from an older file
     assert pedestrians._following_metrics([row, old], 3.0)["map_contact_time"] is None
+
+
+def test_scene_counts_are_parsed_and_bad_items_named():
+    assert pedestrians.parse_scene_counts("lobby:15,corridor:12") == [("lobby", 15), ("corridor", 12)]
+    assert pedestrians.parse_scene_counts(" lobby : 3 , home:1") == [("lobby", 3), ("home", 1)]
+    for bad, item in (("lobby", "lobby"), (":4", ":4"), ("lobby:", "lobby:"), ("lobby:x", "lobby:x"),
+                      ("lobby:-2", "lobby:-2"), ("lobby:0", "lobby:0"), ("lobby:15,", ""), ("home:2,lobby:1.5", "lobby:1.5")):
+        with pytest.raises(ValueError, match=re.escape(f"--scenes: {item!r} is not SCENE:PEOPLE")):
+            pedestrians.parse_scene_counts(bad)

@@ -95,6 +95,21 @@ def people_per_scene(n_scenes: int, lo: int = 3, hi: int = 15) -> list[int]:
     return [int(round(lo + (hi - lo) * k / (n_scenes - 1))) for k in range(n_scenes)]
 
 
+def parse_scene_counts(text: str) -> list[tuple[str, int]]:
+    """``(scene, people)`` pairs, in order, from a ``--scenes`` option of the form ``"lobby:15,corridor:12"``.
+
+    Items and their two parts are stripped of whitespace. An item without a scene name, without a count, with a
+    count that is not a whole number or one below 1 raises :class:`ValueError` naming that item. Scene names are not
+    checked against the library here (a scene that does not exist fails when it is built)."""
+    out = []
+    for item in text.split(","):
+        name, _, n = (part.strip() for part in item.strip().partition(":"))
+        if not name or not (n.isascii() and n.isdigit()) or int(n) < 1:
+            raise ValueError(f"--scenes: {item.strip()!r} is not SCENE:PEOPLE (e.g. lobby:15)")
+        out.append((name, int(n)))
+    return out
+
+
 def _make(scene: str, n: int, human_model: str, seconds: float, seed: int, policy_dir: str | None,
           crowd_model: str = "sfm", env_overrides: dict[str, Any] | None = None, steering_trim: float | None = None):
     from navzoo.envs.nav_env import NavEnv
