@@ -2,7 +2,8 @@
 (``navzoo.rl.amp_joint.NavAmpVecEnv``: social-force targets replanned from the body every 2 s, no steering trim,
 i.e. what scene training sees) and print, per policy, the mean per-step pedestrian reward (track + energy +
 direction, the paper's task terms), the goals reached per pedestrian-minute, falls, contact shares and the path
-error. ``--set amp_progress_reward=W`` adds the optional progress term to the reward.
+error. ``--set amp_progress_reward=W`` adds the optional progress term to the reward, ``--set
+amp_wall_contact_reward=W`` the optional wall-contact term.
 
     python scripts/amp_reward_probe.py --scenes apartment,cafe,campus_plaza,hospital_corridor,shopping_mall,two_doors \\
         --policies s5174=policies/amp_pedestrian,n5325=DIR --steps 1800 --out FILE.json

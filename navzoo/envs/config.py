@@ -149,7 +149,7 @@ class NavConfig:
             task reward: -1 while any link of the body touches a scene obstacle (the contact of the step's last
             physics step, the one ``info["map_contact"]`` reports), else 0 (``info["reward/wall_contact"]``, logged
             whatever the weight). For training the controller to keep its hands and feet off walls and furniture
-            (docs/pedestrians.md, "A wall-contact term in scene training"). 0 (default) = the paper's reward.
+            (docs/pedestrians.md, "A wall-contact term for training"). 0 (default) = the paper's reward.
         time_limit: episode length (s); ``None`` = the scene's own limit.
         goal_tolerance: a robot reaches its goal when closer than this (m); ``None`` = robot radius
             (CrowdNav's rule, as the paper's reward).
