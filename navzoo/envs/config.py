@@ -285,10 +285,7 @@ class NavConfig:
                                  f"(the AMP controller's rate), got {self.dt!r}; use dt=1/{AMP_CONTROL_HZ}")
         if not _is_pos(self.amp_replan_seconds):
             raise bad("amp_replan_seconds", "a finite number > 0")
-        if (isinstance(self.amp_progress_reward, bool) or not isinstance(self.amp_progress_reward, int | float)
-                or not math.isfinite(self.amp_progress_reward) or self.amp_progress_reward < 0):
-            raise bad("amp_progress_reward", "a finite number >= 0")
-        for name in ("amp_stance_reward", "amp_wall_contact_reward"):
+        for name in ("amp_progress_reward", "amp_stance_reward", "amp_wall_contact_reward"):  # the optional reward terms
             w = getattr(self, name)
             if isinstance(w, bool) or not isinstance(w, int | float) or not math.isfinite(w) or w < 0:
                 raise bad(name, "a finite number >= 0")
