@@ -84,10 +84,14 @@ def main() -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
-    jobs = []
-    for item in args.scenes.split(","):
-        name, _, k = item.partition(":")
-        jobs.append((name, int(k), args.seconds, args.seed, args.policy, args.crowd, args.bodies, bool(args.path_in_sight)))
+    from navzoo.benchmark.pedestrians import parse_scene_counts
+
+    try:
+        scenes = parse_scene_counts(args.scenes)
+    except ValueError as e:
+        ap.error(str(e))
+    jobs = [(name, k, args.seconds, args.seed, args.policy, args.crowd, args.bodies, bool(args.path_in_sight))
+            for name, k in scenes]
     if args.workers > 1:
         import multiprocessing as mp
 

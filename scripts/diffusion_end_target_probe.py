@@ -84,11 +84,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--path-in-sight", type=int, choices=(0, 1), default=1,
                     help="the diffusion crowd's path_in_sight setting (default 1, on)")
     args = ap.parse_args(argv)
-    for item in args.scenes.split(","):
-        name, _, k = item.partition(":")
-        if not name or not k.isdigit() or int(k) < 1:
-            ap.error(f"--scenes takes scene:pedestrians items, got {item!r}")
-        print(json.dumps(probe(name, int(k), args.seconds, args.bodies, args.seed, bool(args.path_in_sight))), flush=True)
+    try:
+        scenes = P.parse_scene_counts(args.scenes)
+    except ValueError as e:
+        ap.error(str(e))
+    for name, k in scenes:
+        print(json.dumps(probe(name, k, args.seconds, args.bodies, args.seed, bool(args.path_in_sight))), flush=True)
     return 0
 
 
