@@ -1,7 +1,5 @@
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pybullet as p
 import pytest
@@ -40,9 +38,7 @@ def test_group_constants():
 @pytest.mark.parametrize("name", list_scenes())
 def test_builds_every_library_scene(client, name):
     scene = get_scene(name)
-    t0 = time.perf_counter()
     bodies = build_scene(scene, client)
-    assert time.perf_counter() - t0 < 0.5
     assert len(bodies.obstacle_ids) == len(scene.obstacles)
     assert bodies.ground_id is not None and bodies.body_ids[0] == bodies.ground_id
     assert p.getNumBodies(physicsClientId=client) == len(scene.obstacles) + 1
@@ -120,7 +116,8 @@ def test_collision_filter_on_static_bodies(client, group, mask, mode, crosses):
     assert _cross_wall(client, group, mask, mode) is crosses
 
 
-def test_build_is_fast_for_100_obstacles(client):
+def test_builds_100_mixed_obstacles(client):
+    # build speed is measured by scripts/bench_world.py (docs/scenes.md), not bounded here
     rng = np.random.default_rng(0)
     obstacles = [
         {"type": "box", "center": list(rng.uniform(1, 19, 2)), "size": [0.5, 0.5], "yaw": float(rng.uniform(0, 3))}
@@ -132,7 +129,5 @@ def test_build_is_fast_for_100_obstacles(client):
         for c in rng.uniform(1, 18, (10, 2))
     ]
     scene = load_scene({"name": "many", "bounds": [0, 0, 20, 20], "obstacles": obstacles}, check_reachability=False)
-    t0 = time.perf_counter()
     bodies = build_scene(scene, client)
-    assert time.perf_counter() - t0 < 0.2
     assert len(bodies.obstacle_ids) == 100

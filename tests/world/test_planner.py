@@ -1,7 +1,6 @@
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -124,8 +123,9 @@ def test_distance_field_matches_astar():
     assert planner.distance_to(grid.cell_to_world(goal_rc)) is field  # cached
 
 
-def test_planning_speed_200x200():
-    # worst case for A*: a zig-zag maze that forces exploring almost every cell
+def test_plans_through_a_200x200_zigzag_maze():
+    # worst case for A*: a zig-zag maze that forces exploring almost every cell (its speed is measured by
+    # scripts/bench_world.py, docs/scenes.md, not bounded here)
     occ = np.zeros((200, 200), dtype=bool)
     for k, x in enumerate(range(20, 200, 30)):
         if k % 2 == 0:
@@ -133,13 +133,11 @@ def test_planning_speed_200x200():
         else:
             occ[20:200, x : x + 3] = True
     planner = AStarPlanner(OccupancyGrid(occ, 0.1, (0.0, 0.0)), 0.2)
-    t0 = time.perf_counter()
     path = planner.plan((0.5, 0.5), (19.5, 19.5))
-    elapsed = time.perf_counter() - t0
     assert path is not None
     _assert_collision_free(planner, path)
-    assert elapsed < 0.5  # ~50 ms on a laptop core; generous for loaded CI machines
+    # six walls of 18 m, passed alternately at the top and the bottom: the path snakes through every gap
+    assert path_length(path) > 6 * 15
     open_planner = AStarPlanner(OccupancyGrid(np.zeros((200, 200), dtype=bool), 0.1, (0.0, 0.0)), 0.2)
-    t0 = time.perf_counter()
-    assert open_planner.plan((0.5, 0.5), (19.5, 19.5)) is not None
-    assert time.perf_counter() - t0 < 0.1
+    straight = open_planner.plan((0.5, 0.5), (19.5, 19.5))
+    assert straight is not None and path_length(straight) == pytest.approx(19 * math.sqrt(2), abs=0.2)
