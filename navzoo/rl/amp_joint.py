@@ -504,6 +504,10 @@ class AmpJointArgs:
     # start from args.init with a fresh discriminator (weights, optimiser, input normaliser, replay buffer); a
     # resumed run keeps its own discriminator
     reset_disc: bool = False
+    # weight of the actor's trust region around the policy the run starts from (AmpConfig.anchor_coef: the mean
+    # KL from the start policy on the rollout's states); the start policy is the anchor of every fresh run, and
+    # its KL is logged as anchor/kl whatever the weight. 0 = off
+    anchor_coef: float = 0.0
 
 
 def _learner_config(args: AmpJointArgs, saved: dict[str, Any]):
@@ -512,6 +516,7 @@ def _learner_config(args: AmpJointArgs, saved: dict[str, Any]):
     keep = {k: v for k, v in saved.items() if k in {f.name for f in dataclasses.fields(AmpConfig)}}
     keep.update(seed=args.seed, rollout_steps=args.rollout_steps, epochs=args.epochs,
                 minibatch_size=args.minibatch_size, actor_lr=args.actor_lr, disc_lr=args.disc_lr,
+                anchor_coef=args.anchor_coef,
                 ckpt_replay_rows=min(int(keep.get("ckpt_replay_rows", 8000)), 8000))
     if args.keep_checkpoints is not None:
         keep["keep_checkpoints"] = int(args.keep_checkpoints)
@@ -580,6 +585,7 @@ def train(args: AmpJointArgs) -> dict[str, Any]:
             resumed = ckpt.latest_checkpoint(out / "checkpoints") is not None
             if not resumed:
                 learner.load_checkpoint(start, any_num_envs=True, reset_disc=bool(args.reset_disc))
+                learner.set_anchor()  # the start policy; a resumed run loads its own from its checkpoint
             start_step = int(meta["counters"]["global_step"])
             t0 = time.time()
             result = learner.train(start_step + args.steps, log_dir=out, ckpt_dir=out / "checkpoints",
@@ -666,6 +672,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     tr.add_argument("--amp-velocity-span", type=int, default=1, metavar="STEPS",
                     help="control steps the discriminator's velocities span (1: the shipped controller's inputs; "
                          "another value needs --reset-disc)")
+    tr.add_argument("--anchor-coef", type=float, default=AmpJointArgs.anchor_coef, metavar="W",
+                    help="hold the actor near the start policy: W x the mean KL from it on the rollout's states "
+                         "(AmpConfig.anchor_coef; 0 = off)")
     tr.add_argument("--reset-disc", action="store_true",
                     help="start from --init with a fresh discriminator (weights, optimiser, normaliser, replay)")
     rl = tr.add_argument_group("learning robots (--robots learn: SB3 PPO with the transformer, stepped in the same worlds)")
@@ -696,6 +705,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                                 workers=a.workers, scenes=a.scenes.split(",") if a.scenes else None,
                                 snapshot_every=a.snapshot_every, keep_checkpoints=a.keep_checkpoints,
                                 amp_velocity_span=a.amp_velocity_span, reset_disc=a.reset_disc,
+                                anchor_coef=a.anchor_coef,
                                 robot_learn=None if a.robots == "frozen" else {
                                     "init_from": a.robot_init, "lr": a.robot_lr, "n_steps": a.robot_n_steps,
                                     "n_epochs": a.robot_epochs, "batch_size": a.robot_batch_size,

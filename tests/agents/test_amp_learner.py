@@ -697,3 +697,33 @@ def test_the_cloning_term_pulls_the_actor_to_the_pairs_actions() -> None:
         cloned.set_bc_data(np.full_like(obs, np.nan), target)
     with pytest.raises(ValueError, match="bc_coef"):
         AmpConfig(bc_coef=-1.0)
+
+
+def test_the_anchor_term_holds_the_actor_near_its_start_and_survives_a_resume(tmp_path: Path) -> None:
+    def run(coef: float) -> tuple[AmpLearner, float]:
+        learner = AmpLearner(_toy(8, episode_steps=12), toy_amp_config(actor_lr=1e-3, anchor_coef=coef))
+        learner.set_anchor()
+        start = {k: v.clone() for k, v in learner.actor.state_dict().items()}
+        for _ in range(6):
+            learner.collect(8)
+            stats = learner.update()
+        # the anchor is a frozen copy: the actor moved, the anchor did not
+        assert all(torch.equal(v, start[k]) for k, v in learner.anchor[0].state_dict().items())
+        assert not all(torch.equal(v, start[k]) for k, v in learner.actor.state_dict().items())
+        return learner, stats["anchor/kl"]
+
+    free, kl_free = run(0.0)  # no weight: the KL from the start is only logged
+    held, kl_held = run(20.0)
+    assert kl_free > 0 and kl_held < 0.25 * kl_free
+    # a checkpoint keeps the anchor (the start policy and its normaliser, not the moved actor)
+    held.save_checkpoint(tmp_path)
+    again = AmpLearner(_toy(8, episode_steps=12), toy_amp_config(actor_lr=1e-3, anchor_coef=20.0))
+    again.load_checkpoint(latest_checkpoint(tmp_path))
+    for mine, saved in zip(again.anchor, held.anchor, strict=True):
+        assert all(torch.equal(v, saved.state_dict()[k]) for k, v in mine.state_dict().items())
+    with pytest.raises(ValueError, match="has no anchor"):
+        lone = AmpLearner(_toy(8, episode_steps=12), toy_amp_config(anchor_coef=1.0))
+        lone.collect(8)
+        lone.update()
+    with pytest.raises(ValueError, match="anchor_coef"):
+        AmpConfig(anchor_coef=float("nan"))

@@ -82,6 +82,26 @@ def test_training_over_workers_and_scenes_snapshots_and_resumes_only_as_itself(t
         train(AmpJointArgs(**{**args.__dict__, "workers": 3}))
 
 
+def test_the_start_policy_is_the_anchor_of_a_scene_fine_tune(tmp_path):
+    import torch
+
+    from navzoo.agents.amp.checkpoint import latest_checkpoint, load_checkpoint
+
+    args = AmpJointArgs(out=str(tmp_path / "run"), n_envs=1, n_humans=1, n_robots=0, workers=2,
+                        scenes=["apartment", "two_doors"], steps=32, minibatch_size=16, ckpt_every=1,
+                        anchor_coef=0.5)
+    train(args)
+    tensors, meta = load_checkpoint(latest_checkpoint(tmp_path / "run" / "checkpoints"))
+    assert meta["config"]["anchor_coef"] == 0.5
+    shipped = torch.load(default_policy_dir() / "policy.pt", weights_only=True)
+    for part in ("actor", "obs_norm"):
+        for k, v in tensors["anchor"][part].items():
+            if k != "log_std":  # the exploration std is the learner's hyper-parameter
+                assert torch.equal(v, shipped[f"{part}.{k}"]), (part, k)
+    rows = [json.loads(line) for line in (tmp_path / "run" / "metrics.jsonl").read_text().splitlines()]
+    assert all(row["anchor/kl"] >= 0 for row in rows if "anchor/kl" in row) and any("anchor/kl" in r for r in rows)
+
+
 def test_a_worker_that_cannot_build_its_env_is_reported_with_its_traceback():
     with pytest.raises(RuntimeError, match=r"(?s)AMP worker 0 failed during 'start'.*NoSuchScenario"):
         SubprocNavAmpVecEnv("navzoo/NoSuchScenario-v0", 1, 1, 0, workers=2)

@@ -32,6 +32,7 @@ that a resumed run continues bit-identically on CPU when the env can save its st
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 import math
@@ -166,6 +167,12 @@ class AmpConfig:
             (:meth:`AmpLearner.set_bc_data`) of the squared distance between the mean action and the pair's action,
             summed over action dimensions; it keeps an actor cloned from the clips near their gait while PPO
             teaches it balance (:mod:`navzoo.agents.amp.bc`). 0 = off; > 0 needs the pairs.
+        anchor_coef: weight of a trust-region term that holds the actor near a frozen copy of itself (its anchor,
+            :meth:`AmpLearner.set_anchor`, e.g. the policy a fine-tune starts from): the mean over the minibatch's own
+            states of KL(anchor(.|s) || actor(.|s)), summed over action dimensions; each policy reads the state
+            through its own observation normaliser, so the anchor keeps meaning what it meant when it was set.
+            With the fixed exploration std (0.055) a mean shift of 0.055 in one action dimension costs 0.5.
+            0 = off (the KL is still logged as ``anchor/kl`` when an anchor is set); > 0 needs an anchor.
         actor_warmup_iters: the actor is not updated before this iteration (critic and discriminator are), e.g.
             to fit a fresh critic to an actor that starts from behaviour cloning (:mod:`navzoo.agents.amp.bc`);
             0 = off. The iteration counts from the start of the run, so a resumed run past it is unaffected.
@@ -211,6 +218,7 @@ class AmpConfig:
     keep_checkpoints: int = 3
     actor_warmup_iters: int = 0
     bc_coef: float = 0.0
+    anchor_coef: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("actor_hidden", "critic_hidden", "disc_hidden"):
@@ -256,6 +264,7 @@ class AmpConfig:
             "style_weight",
             "task_weight",
             "bc_coef",
+            "anchor_coef",
         )
         if not (isinstance(self.actor_warmup_iters, int) and self.actor_warmup_iters >= 0):
             raise ValueError(f"AmpConfig.actor_warmup_iters must be an integer >= 0, got {self.actor_warmup_iters!r}")
@@ -392,6 +401,8 @@ class AmpLearner:
         #: behaviour-cloning pairs (observations, actions) for ``cfg.bc_coef`` (:meth:`set_bc_data`)
         self.bc_obs: torch.Tensor | None = None
         self.bc_act: torch.Tensor | None = None
+        #: the frozen actor and observation normaliser of ``cfg.anchor_coef`` (:meth:`set_anchor`), None: no anchor
+        self.anchor: tuple[Actor, RunningMeanStd] | None = None
         self.actor_params = [p for p in self.actor.parameters() if p.requires_grad]
         self.actor_opt = torch.optim.Adam(self.actor_params, lr=cfg.actor_lr, eps=cfg.adam_eps)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=cfg.critic_lr, eps=cfg.adam_eps)
@@ -578,6 +589,12 @@ class AmpLearner:
         self.bc_obs = torch.as_tensor(obs, device=self.device)
         self.bc_act = torch.as_tensor(actions, device=self.device)
 
+    def set_anchor(self) -> None:
+        """Freeze a copy of the current actor and observation normaliser as the anchor of ``cfg.anchor_coef``
+        (call it after loading the policy to stay near). Saved in checkpoints, so a resumed run keeps its anchor."""
+        actor = copy.deepcopy(self.actor).requires_grad_(False)
+        self.anchor = (actor, copy.deepcopy(self.obs_norm).requires_grad_(False))
+
     def update(self) -> dict[str, float]:
         """Train on the last rollout (see the module docstring); returns scalar statistics."""
         ro = self._rollout
@@ -586,6 +603,9 @@ class AmpLearner:
         if self.cfg.bc_coef > 0 and self.bc_obs is None:
             raise ValueError(f"AmpConfig.bc_coef is {self.cfg.bc_coef} but no behaviour-cloning pairs were given "
                              f"(AmpLearner.set_bc_data)")
+        if self.cfg.anchor_coef > 0 and self.anchor is None:
+            raise ValueError(f"AmpConfig.anchor_coef is {self.cfg.anchor_coef} but the learner has no anchor "
+                             f"(AmpLearner.set_anchor, or a checkpoint saved with one)")
         cfg, dev = self.cfg, self.device
         T, E = ro.task_rewards.shape
         B = T * E
@@ -618,6 +638,7 @@ class AmpLearner:
             for t, idx, final in ro.finals:
                 next_values[t, idx] = self._values(self.obs_norm.normalize(final))
             old_logp = self.actor.dist(obs_n).log_prob(actions).sum(-1)
+            anchor_dist = self.anchor[0].dist(self.anchor[1].normalize(obs)) if self.anchor is not None else None
             adv, returns = compute_gae(
                 reward, values, next_values, ro.terminated, ro.dones, cfg.gamma, cfg.gae_lambda
             )
@@ -666,6 +687,12 @@ class AmpLearner:
                     bc_loss = (self.actor(bc_in) - self.bc_act[pick]).square().sum(-1).mean()
                     actor_loss = actor_loss + cfg.bc_coef * bc_loss
                     log("losses/bc", bc_loss)
+                if anchor_dist is not None:  # stay near the anchor policy on this rollout's states
+                    anchor_mb = torch.distributions.Normal(anchor_dist.mean[mb], anchor_dist.stddev[mb])
+                    anchor_kl = torch.distributions.kl_divergence(anchor_mb, dist).sum(-1).mean()
+                    if cfg.anchor_coef > 0:
+                        actor_loss = actor_loss + cfg.anchor_coef * anchor_kl
+                    log("anchor/kl", anchor_kl)
                 if self.iteration >= cfg.actor_warmup_iters:
                     self._step(self.actor_opt, actor_loss, self.actor_params)
                 # Critic: MSE on (normalised) returns.
@@ -872,7 +899,7 @@ class AmpLearner:
         }
         if self._obs is not None:
             learner_arrays["obs"] = torch.from_numpy(self._obs.copy())
-        tensors = {
+        tensors: dict[str, Any] = {
             "actor": self.actor.state_dict(),
             "critic": self.critic.state_dict(),
             "disc": self.disc.state_dict(),
@@ -887,6 +914,8 @@ class AmpLearner:
             "learner": learner_arrays,
             "env": env_arrays,
         }
+        if self.anchor is not None:
+            tensors["anchor"] = {"actor": self.anchor[0].state_dict(), "obs_norm": self.anchor[1].state_dict()}
         companion = getattr(self.env, "companion_state", None)
         if callable(companion):  # e.g. robots learning in the same worlds (navzoo.rl.amp_joint)
             state = companion()
@@ -970,6 +999,10 @@ class AmpLearner:
                 self.amp_norm.load_state_dict(tensors["amp_norm"])
                 self.disc_opt.load_state_dict(tensors["disc_opt"])
                 self.replay.load_state_dict(tensors["replay"])
+            if "anchor" in tensors:
+                self.set_anchor()
+                self.anchor[0].load_state_dict(tensors["anchor"]["actor"])
+                self.anchor[1].load_state_dict(tensors["anchor"]["obs_norm"])
             self.torch_gen.set_state(tensors["torch_rng"])
             self.rng.bit_generator.state = meta["numpy_rng"]
             counters = meta["counters"]
