@@ -27,11 +27,12 @@ import math
 import numpy as np
 
 from navzoo.agents.amp.checkpoint import load_policy
+from navzoo.agents.amp.learner import AmpConfig
 from navzoo.agents.amp.pedestrian_policy import default_policy_dir
 from navzoo.benchmark.pedestrians import parse_scene_counts
 from navzoo.rl.amp_joint import NavAmpVecEnv
 
-TRAIN_STD = math.exp(-2.9)
+TRAIN_STD = math.exp(AmpConfig().init_log_std)  # the training's fixed exploration std
 
 
 def collect_states(reference, scenes: list[tuple[str, int]], steps: int, seed: int) -> np.ndarray:

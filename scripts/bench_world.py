@@ -27,6 +27,7 @@ import time
 import numpy as np
 import pybullet as p
 
+from navzoo.machine import cpu_model
 from navzoo.world.builder import build_scene
 from navzoo.world.library import get_scene, list_scenes
 from navzoo.world.occupancy import OccupancyGrid
@@ -82,17 +83,6 @@ def time_plan(occ: np.ndarray, repeats: int) -> list[float]:
     return times
 
 
-def cpu_name() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
 def summary(times: list[float]) -> dict[str, float]:
     ms = np.asarray(times) * 1e3
     return {"median_ms": round(float(np.median(ms)), 2), "p90_ms": round(float(np.percentile(ms, 90)), 2)}
@@ -112,7 +102,7 @@ def main() -> None:
     rows["build 100 mixed obstacles"] = summary(time_build(hundred_obstacle_scene(), args.repeats))
     rows["A* 200x200 open grid"] = summary(time_plan(np.zeros((200, 200), dtype=bool), args.repeats))
     rows["A* 200x200 zig-zag maze"] = summary(time_plan(zigzag_maze(200), args.repeats))
-    machine = f"{cpu_name()}, {os.cpu_count()} cores, Python {platform.python_version()}"
+    machine = f"{cpu_model()}, {os.cpu_count()} cores, Python {platform.python_version()}"
     if args.json:
         print(json.dumps({"machine": machine, "repeats": args.repeats, "rows": rows}, indent=2))
         return
