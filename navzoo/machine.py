@@ -1,14 +1,17 @@
-"""What a measurement ran on: the CPU's model name.
+"""What a measurement ran on: the CPU's model name and the versions of the packages that compute its floats.
 
-Runs with physics pedestrians or a diffusion crowd repeat trip for trip only on one kind of CPU (floating-point
-results differ between CPU kinds), so result files record the CPU model next to their numbers. This module has no
-heavy imports, so the training, study and benchmark code can all use it.
+Runs with physics pedestrians or a diffusion crowd repeat trip for trip only where the floating-point results are
+the same. Two installations of the same navzoo on the same VM drew other trips (docs/pedestrians.md, "The
+protocol's noise"), and CPU kinds may differ too. So result files record the CPU model and the numeric packages'
+versions next to their numbers. This module has no heavy imports, so the training, study and benchmark code can
+all use it.
 """
 
 from __future__ import annotations
 
 import contextlib
 import platform
+from importlib import metadata
 
 
 def cpu_model() -> str:
@@ -20,3 +23,18 @@ def cpu_model() -> str:
                 if line.startswith("model name"):
                     return line.split(":", 1)[1].strip()
     return cpu
+
+
+NUMERIC_PACKAGES = ("numpy", "scipy", "torch", "pybullet")
+
+
+def package_versions(names: tuple[str, ...] = NUMERIC_PACKAGES) -> dict[str, str]:
+    """Python's version and each named package's installed version (``"absent"`` where it is not installed), read
+    from the installed distributions without importing the packages."""
+    out = {"python": platform.python_version()}
+    for name in names:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "absent"
+    return out

@@ -173,12 +173,12 @@ def _run(job: tuple[dict, str, int, float, int, str, dict]) -> dict:
                            human_model=bodies)
     row.pop("poses")
     row.pop("walk_kin")  # speed / acceleration / jerk samples: navzoo eval crowd reports them
-    from navzoo.benchmark.runner import cpu_model
+    from navzoo.machine import cpu_model, package_versions
 
     return {"config": cfg["name"],
             **{k: cfg[k] for k in (*_PARAMS, "fallen_obstacles")},
             "crowd": crowd, "bodies": bodies, "diffusion_settings": diffusion_settings, "seed": seed, **row,
-            "cpu": cpu_model()}
+            "cpu": cpu_model(), "packages": package_versions()}
 
 
 _PARAMS = ("plan_margin", "wall_margin", "lookahead", "turn_rate", "env_flags", "trim", "policy", "accel", "graded",
@@ -267,11 +267,26 @@ def _same_run(a: dict, b: dict) -> bool:
             and abs(a["err_sum"] - b["err_sum"]) <= 1e-6 * max(1.0, abs(a["err_sum"])))
 
 
+def _why_different(a: dict, b: dict) -> str:
+    """What two rows of one run key record of where they ran, where it differs: CPUs, then package versions (rows
+    since 2026-12-05 record them); empty when neither says."""
+    cpus = {a.get("cpu"), b.get("cpu")}
+    if len(cpus) == 2 and None not in cpus:
+        return f" (run on different CPUs: {' and '.join(map(str, cpus))})"
+    pa, pb = a.get("packages"), b.get("packages")
+    if pa and pb and pa != pb:
+        diff = [f"{k} {pa.get(k, 'absent')} and {pb.get(k, 'absent')}" for k in sorted({*pa, *pb})
+                if pa.get(k) != pb.get(k)]
+        return f" (run with different packages: {', '.join(diff)})"
+    return ""
+
+
 def read_rows(paths: str | list[str]) -> list[dict]:
     """The rows of one or more result files. A run (configuration, crowd model and settings, seed, bodies,
-    scene) found in several files is kept once if its counts agree (one kind of CPU repeats a run trip for trip),
-    and refused if they differ (another kind of CPU, or another setting under one name): pooling both would count
-    that seed and scene twice."""
+    scene) found in several files is kept once if its counts agree (the same floats repeat a run trip for trip),
+    and refused if they differ (another installation or kind of CPU, or another setting under one name; the error
+    names the CPUs or package versions where the rows record them): pooling both would count that seed and scene
+    twice."""
     rows: list[dict] = []
     seen: dict[tuple, tuple[str, dict]] = {}
     for path in [paths] if isinstance(paths, str) else paths:
@@ -283,9 +298,7 @@ def read_rows(paths: str | list[str]) -> list[dict]:
             if key in seen:
                 first, other = seen[key]
                 if not _same_run(r, other):
-                    cpus = {r.get("cpu"), other.get("cpu")}
-                    why = (f" (run on different CPUs: {' and '.join(map(str, cpus))})" if len(cpus) == 2 and None not in cpus
-                           else "")
+                    why = _why_different(other, r)  # in the order of the files named
                     raise ValueError(f"run {key[0]!r} seed {key[3]} {key[5]} is in {first} and {path} with different "
                                      f"counts: not the same run{why}")
                 continue

@@ -256,6 +256,13 @@ def test_a_summary_of_several_files_counts_a_repeated_run_once_and_refuses_a_dif
     clash.write_text(json.dumps(_row(cfg, "lobby", 0, success=4, cpu="AMD EPYC")) + "\n")
     with pytest.raises(ValueError, match=r"not the same run \(run on different CPUs: (Intel Xeon and AMD EPYC|AMD EPYC and Intel Xeon)\)"):
         ablation.summary([str(first), str(clash)])
+    # rows that record their packages name the versions that differ when the CPUs do not
+    pk = {"python": "3.11.7", "numpy": "2.4.6", "scipy": "1.17.1", "torch": "2.13.0", "pybullet": "3.2.7"}
+    first.write_text(json.dumps(_row(cfg, "lobby", 0, success=3, cpu="AMD EPYC", packages=pk)) + "\n")
+    clash.write_text(json.dumps(_row(cfg, "lobby", 0, success=4, cpu="AMD EPYC",
+                                     packages={**pk, "numpy": "2.4.7"})) + "\n")
+    with pytest.raises(ValueError, match=r"not the same run \(run with different packages: numpy 2\.4\.6 and 2\.4\.7\)"):
+        ablation.summary([str(first), str(clash)])
     with pytest.raises(SystemExit):
         ablation.main(["--summary", str(first), str(tmp_path / "missing.jsonl")])
     assert "missing.jsonl" in capsys.readouterr().err

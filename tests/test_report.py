@@ -201,9 +201,28 @@ def test_the_cpu_model_names_the_machine_and_machine_info_uses_it():
     cpu = cpu_model()
     assert isinstance(cpu, str) and cpu.strip()
     assert machine_info()["cpu"] == cpu
+    from navzoo.machine import package_versions
+
+    assert machine_info()["packages"] == package_versions()
     # the training and study records name the same CPU (once they recorded only platform.processor(), often empty)
     from navzoo.agents import scaling_study
     from navzoo.agents.amp import stage0
 
     assert scaling_study.machine_info()["cpu"] == cpu
     assert stage0._machine()["cpu"] == cpu
+
+
+def test_package_versions_name_the_installed_numeric_packages_without_importing_them():
+    import platform
+
+    import numpy
+    import scipy
+
+    from navzoo.machine import NUMERIC_PACKAGES, package_versions
+
+    v = package_versions()
+    assert set(v) == {"python", *NUMERIC_PACKAGES}
+    assert v["python"] == platform.python_version()
+    assert v["numpy"] == numpy.__version__ and v["scipy"] == scipy.__version__
+    assert all(isinstance(x, str) and x for x in v.values())
+    assert package_versions(("no-such-package-navzoo",))["no-such-package-navzoo"] == "absent"

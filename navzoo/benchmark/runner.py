@@ -1030,8 +1030,10 @@ def _write_json(path: Path, obj: Any) -> None:
 
 
 def machine_info() -> dict[str, Any]:
-    """CPU model, cores, load average, OS, Python, navzoo version and git commit (when in a checkout)."""
+    """CPU model, cores, load average, OS, Python, the numeric packages' versions, navzoo version and git commit (when
+    in a checkout)."""
     import navzoo
+    from navzoo.machine import package_versions
 
     info: dict[str, Any] = {
         "cpu": cpu_model(),
@@ -1040,6 +1042,7 @@ def machine_info() -> dict[str, Any]:
         "python": platform.python_version(),
         "navzoo": getattr(navzoo, "__version__", None),
         "hostname": platform.node(),
+        "packages": package_versions(),
     }
     info["load_average"] = _loadavg()
     root = Path(navzoo.__file__).resolve().parent.parent
