@@ -10,12 +10,13 @@ $(VENV)/bin/activate:
 	$(PY) -m pip install --upgrade pip
 
 # CPU torch first (the wheel that is pinned for this project); an unpinned torch would pull CUDA.
+# constraints.txt: the package versions the recorded figures ran with (a new installation repeats them trip for trip).
 install: $(VENV)/bin/activate
-	$(PY) -m pip install torch==2.13.0
-	$(PY) -m pip install -e .
+	$(PY) -m pip install -c constraints.txt torch==2.13.0
+	$(PY) -m pip install -c constraints.txt -e .
 
 install-test: install
-	$(PY) -m pip install -e ".[test,ray]"
+	$(PY) -m pip install -c constraints.txt -e ".[test,ray]"
 
 demo: install
 	$(VENV)/bin/navzoo demo --out runs/demo
