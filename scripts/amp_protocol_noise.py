@@ -31,12 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
+from navzoo.benchmark.pedestrians import goal_trip_rates, scene_names
+
 _SPEC = importlib.util.spec_from_file_location("amp_target_ablation",
                                                Path(__file__).resolve().parent / "amp_target_ablation.py")
 _ablation = importlib.util.module_from_spec(_SPEC)
 _SPEC.loader.exec_module(_ablation)
 
-_KEYS = ("success", "off_path", "fall", "timeout")
 _Z = 1.96 + 0.8416  # two-sided 5 %, power 80 %
 
 
@@ -61,9 +62,7 @@ def seed_rates(rows: Sequence[dict], configs: Sequence[str], scenes: Sequence[st
     out: dict[str, dict[int, float]] = {c: {} for c in configs}
     for c in configs:
         for s in complete:
-            runs = have[(c, s)].values()
-            trips = sum(r[k] for r in runs for k in _KEYS)
-            out[c][s] = sum(r["success"] for r in runs) / max(1, trips)
+            out[c][s] = goal_trip_rates(list(have[(c, s)].values()))["success_rate"]
     return out
 
 
@@ -98,8 +97,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--scenes", default="protocol", help="'protocol' (the 8), 'heldout' or scene names")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    from navzoo.benchmark.pedestrians import scene_names
-
     files = sorted({f for pat in args.files for f in glob.glob(pat)})
     if not files:
         ap.error(f"no result files match {args.files}")
