@@ -10,14 +10,23 @@ variant sets attributes of the env's ``DiffusionCrowd`` (``guidance_scale``, ``r
 ``target_weight``, ``agent_weight``, ``map_weight``, and ``lookahead``, the seconds ahead on the plan that
 the preferred velocity aims at (``preferred_velocities(lookahead=)``). Two probes of the model's inputs:
 ``history_fit=DEG`` gives the model least-squares polynomial fits of degree DEG to the 8-point histories
-(its own and its neighbours', the last point kept exact), ``no_map=1`` withholds the occupancy crop. Prints, per variant, the mean
+(its own and its neighbours', the last point kept exact), ``no_map=1`` withholds the occupancy crop, ``no_neigh=1``
+withholds the neighbours' histories (the model plans as if alone; the people guidance still acts). Two probes of the
+walker, the social force that carries each kinematic body along its plan: ``walker_FIELD=V`` sets a field of its
+:class:`~navzoo.agents.sfm.SocialForceParams` (e.g. ``walker_max_accel=1.0``), ``orca_walker=1`` walks the plans
+with ORCA instead. ``pace_ramp=A`` (a ``DiffusionCrowd`` setting) spaces the path guidance's points by a pace that
+changes from the person's current speed toward its preferred one at A m/s². Prints, per variant, the mean
 walked speed, acceleration and jerk, the mean acceleration of the plans themselves (every plan made,
-at its 0.4 s points), goals reached and the overlap share (centres closer than 0.4 m).
+at its 0.4 s points), goals reached and the overlap share (centres closer than 0.4 m), and the walked
+acceleration split at the goals: within :data:`GOAL_WINDOW_S` of a person's goal arrival (the turn to the next
+goal, which the recordings never show) and the rest (``accel_near_goal_mean``, ``accel_between_goals_mean``,
+``near_goal_share``).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 
@@ -25,7 +34,17 @@ import numpy as np
 import torch
 
 from navzoo.agents.crowd import CrowdPolicy
-from navzoo.benchmark.crowd_eval import STEP, collision_share, track_kinematics
+from navzoo.agents.orca import orca_velocities
+from navzoo.agents.sfm import SocialForceParams
+from navzoo.benchmark.crowd_eval import (
+    MIN_START_SPEED,
+    STEP,
+    collision_share,
+    kinematics,
+    resample,
+    track_kinematics,
+    trim_still_start,
+)
 from navzoo.envs.nav_env import NavEnv
 from navzoo.envs.wrappers import FrozenAgents
 
@@ -42,6 +61,27 @@ def parse_variant(text: str) -> dict[str, float]:
     return out
 
 
+#: Seconds either side of a goal arrival whose walked accelerations count as "near a goal".
+GOAL_WINDOW_S = 2.0
+
+
+def split_at_goals(t: np.ndarray, xy: np.ndarray, arrivals: np.ndarray, step: float = STEP,
+                   window: float = GOAL_WINDOW_S) -> tuple[np.ndarray, np.ndarray]:
+    """A track's walked accelerations (resampled to ``step``, still start trimmed, as the realism part) split in two:
+    those whose middle sample lies within ``window`` s of one of the ``arrivals`` (times of goal arrivals, s), and the
+    rest. Returns ``(near, between)``. The track is taken whole: kinematic walkers never jump."""
+    res = resample(np.asarray(t, dtype=float), np.asarray(xy, dtype=float), step)
+    kept = trim_still_start(res, step, MIN_START_SPEED)
+    first = float(t[0]) + (len(res) - len(kept)) * step  # time of the first kept sample
+    acc = kinematics(kept, step)["accel"]
+    at = first + step * np.arange(1, 1 + acc.size)  # the accel of samples k-1, k, k+1 belongs to sample k
+    arrivals = np.asarray(arrivals, dtype=float)
+    if arrivals.size == 0:
+        return acc[:0], acc
+    near = np.min(np.abs(at[:, None] - arrivals[None, :]), axis=1) <= window
+    return acc[near], acc[~near]
+
+
 def fit_histories(h: np.ndarray, deg: int) -> np.ndarray:
     """Least-squares polynomial fit of degree ``deg`` over the time axis (-2) of ``(..., T, 2)``
     histories, shifted so that the last point stays where it was."""
@@ -51,10 +91,9 @@ def fit_histories(h: np.ndarray, deg: int) -> np.ndarray:
     return fit + (h[..., -1:, :] - fit[..., -1:, :])
 
 
-def run(scene: str, n: int, seconds: float, settings: dict[str, float], seed: int = 0) -> dict:
-    env = NavEnv(scene=scene, n_robots=0, n_humans=n, crowd_model="diffusion", time_limit=seconds)
-    crowd = env.diffusion
-    settings = dict(settings)
+def _diffusion_probes(crowd, settings: dict[str, float]) -> list[np.ndarray]:
+    """Apply a variant's diffusion settings and model probes to the env's ``DiffusionCrowd``; returns the list that
+    collects every plan made (filled as the run goes)."""
     lookahead = settings.pop("lookahead", None)
     history_fit = settings.pop("history_fit", None)
     if history_fit is not None:
@@ -76,6 +115,13 @@ def run(scene: str, n: int, seconds: float, settings: dict[str, float], seed: in
             return sample(batch, *a, **k)
 
         crowd.model.sample = sample_without_map
+    if settings.pop("no_neigh", 0):
+        sample_all = crowd.model.sample
+
+        def sample_alone(batch, *a, **k):
+            return sample_all({**batch, "neigh_mask": torch.zeros_like(batch["neigh_mask"])}, *a, **k)
+
+        crowd.model.sample = sample_alone
     names = ("target_weight", "agent_weight", "map_weight")  # the guidance weights, kept as one tuple
     crowd.weights = tuple(settings.pop(k, w) for k, w in zip(names, crowd.weights, strict=True))
     for key, value in settings.items():
@@ -95,22 +141,65 @@ def run(scene: str, n: int, seconds: float, settings: dict[str, float], seed: in
         return out
 
     crowd.plan_now = recording_plan_now
-    wrapped = FrozenAgents(env, lambda a: a.startswith("human_"), CrowdPolicy("diffusion"))
+    return plans
+
+
+def walker_params(base: SocialForceParams, walker: dict[str, float]) -> SocialForceParams:
+    """``base`` with the ``walker_FIELD=V`` settings of a variant (names without the prefix), each of the field's type;
+    unknown fields are refused."""
+    fields = {f.name for f in dataclasses.fields(SocialForceParams) if f.init}
+    unknown = sorted(set(walker) - fields)
+    if unknown:
+        raise SystemExit(f"SocialForceParams has no field(s) {unknown}; choose from {sorted(fields)}")
+    return dataclasses.replace(base, **{k: type(getattr(base, k))(v) for k, v in walker.items()})
+
+
+def run(scene: str, n: int, seconds: float, settings: dict[str, float], seed: int = 0,
+        crowd_model: str = "diffusion") -> dict:
+    settings = dict(settings)
+    orca_walker = bool(settings.pop("orca_walker", 0))
+    walker = {k[len("walker_"):]: v for k, v in settings.items() if k.startswith("walker_")}
+    settings = {k: v for k, v in settings.items() if not k.startswith("walker_")}
+    if crowd_model != "diffusion" and (settings or orca_walker or (walker and crowd_model != "sfm")):
+        raise SystemExit(f"the {crowd_model} crowd takes no variant settings but walker_FIELD=V (sfm only), "
+                         f"got {sorted(settings) + (['orca_walker'] if orca_walker else []) + sorted(walker)}")
+    env = NavEnv(scene=scene, n_robots=0, n_humans=n, crowd_model=crowd_model, time_limit=seconds)
+    plans = _diffusion_probes(env.diffusion, settings) if crowd_model == "diffusion" else []
+    policy = CrowdPolicy(crowd_model)
+    if walker:
+        policy.sfm_params = walker_params(env.crowd_sfm_params, walker)
+    if orca_walker:  # the plans' preferred velocities, walked by ORCA instead of social force
+        def orca_walk(env_: NavEnv) -> np.ndarray:
+            h = np.arange(env_.n_robots, env_.n_total)
+            pref = env_.crowd_conventions(env_.diffusion.preferred_velocities(env_), env_.sim_time)
+            vmax = np.full(h.size, env_.config.human_max_speed)
+            return orca_velocities(env_.pos[h], env_.vel[h], pref, env_.radius[h], vmax, env_.config.dt,
+                                   policy.orca_params, env_.segments, n_active=h.size)
+
+        policy.velocities = orca_walk
+    wrapped = FrozenAgents(env, lambda a: a.startswith("human_"), policy)
     t0 = time.time()
     wrapped.reset(seed=seed)
     positions = [env.pos.copy()]
+    reached = [env.goals_reached.copy()]
     while not env._needs_reset:
         wrapped.step({})
         positions.append(env.pos.copy())
+        reached.append(env.goals_reached.copy())
     goals = int(env.goals_reached.sum())
     wrapped.close()
     pos = np.asarray(positions)
     t = np.arange(len(pos)) * env.config.dt
     kin = track_kinematics([(t, pos[:, j]) for j in range(n)], STEP)
-    plan_acc = np.concatenate([np.linalg.norm(np.diff(p, 2, axis=1), axis=2).ravel() / STEP ** 2 for p in plans])
+    arrived = np.diff(np.asarray(reached), axis=0) > 0  # (T, n): a goal reached in the step that ends at t[k + 1]
+    split = [split_at_goals(t, pos[:, j], t[1:][arrived[:, j]]) for j in range(n)]
+    plan_acc = np.concatenate([np.linalg.norm(np.diff(p, 2, axis=1), axis=2).ravel() / STEP ** 2 for p in plans]
+                              or [np.zeros(0)])
     hit, total = collision_share(pos, 0.4)
     return {"scene": scene, "people": n, "speed": kin["speed"], "accel": kin["accel"], "jerk": kin["jerk"],
-            "plan_accel": plan_acc, "goals": goals, "overlap": (hit, total), "wall_s": time.time() - t0}
+            "plan_accel": plan_acc, "accel_near_goal": np.concatenate([a for a, _ in split]),
+            "accel_between_goals": np.concatenate([b for _, b in split]), "goals": goals, "overlap": (hit, total),
+            "wall_s": time.time() - t0}
 
 
 def main() -> None:
@@ -119,18 +208,22 @@ def main() -> None:
     ap.add_argument("--scenes", default="lobby:12,corridor:10,home:5")
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--crowd", default="diffusion", choices=("diffusion", "sfm", "orca"),
+                    help="the crowd model (sfm / orca: for comparison; no plans, only walker_ settings for sfm)")
     ap.add_argument("--out", default=None, help="append one JSON line per variant")
     args = ap.parse_args()
     scenes = [(s.split(":")[0], int(s.split(":")[1])) for s in args.scenes.split(",")]
     for text in args.variants.split(";"):
         settings = parse_variant(text)
-        rows = [run(sc, n, args.seconds, settings, args.seed) for sc, n in scenes]
-        cat = {q: np.concatenate([r[q] for r in rows]) for q in ("speed", "accel", "jerk", "plan_accel")}
+        rows = [run(sc, n, args.seconds, settings, args.seed, args.crowd) for sc, n in scenes]
+        cat = {q: np.concatenate([r[q] for r in rows])
+               for q in ("speed", "accel", "jerk", "plan_accel", "accel_near_goal", "accel_between_goals")}
         hit = sum(r["overlap"][0] for r in rows)
         total = sum(r["overlap"][1] for r in rows)
-        line = {"variant": text.strip() or "default", "scenes": args.scenes, "seconds": args.seconds,
+        line = {"variant": text.strip() or "default", "crowd": args.crowd, "scenes": args.scenes, "seconds": args.seconds,
                 "seed": args.seed,
-                **{f"{q}_mean": round(float(v.mean()), 4) for q, v in cat.items()},
+                **{f"{q}_mean": round(float(v.mean()), 4) if v.size else None for q, v in cat.items()},
+                "near_goal_share": round(cat["accel_near_goal"].size / max(cat["accel"].size, 1), 4),
                 "goals": sum(r["goals"] for r in rows), "overlap_share": round(hit / max(total, 1), 5),
                 "wall_s": round(sum(r["wall_s"] for r in rows), 1)}
         print(json.dumps(line), flush=True)

@@ -363,3 +363,48 @@ def test_end_targets_stay_on_the_path_and_only_targets_past_the_goal_are_clipped
     env.close()
     with pytest.raises(ValueError, match="past_goal_turn_deg"):
         DiffusionCrowd(TrajectoryDiffusion(CFG), past_goal_turn_deg=-1.0)
+
+
+def test_ramped_distances_change_pace_at_the_given_rate():
+    from navzoo.agents.diffusion.crowd import ramped_distances
+
+    t = np.array([0.5, 1.0, 2.0, 4.0])
+    # off: the preferred pace from the first step
+    np.testing.assert_allclose(ramped_distances(np.array([0.2]), np.array([1.2]), 0.0, t), [[0.6, 1.2, 2.4, 4.8]])
+    # 0.2 -> 1.2 m/s at 0.5 m/s^2 takes 2 s (1.4 m), then 1.2 m/s
+    d = ramped_distances(np.array([0.2, 1.2, 1.6]), np.array([1.2, 1.2, 1.2]), 0.5, t)
+    np.testing.assert_allclose(d[0], [0.2 * 0.5 + 0.25 * 0.25, 0.2 + 0.25, 1.4, 1.4 + 2.4])
+    np.testing.assert_allclose(d[1], 1.2 * t)  # already at pace
+    np.testing.assert_allclose(d[2], [1.6 * 0.5 - 0.25 * 0.25, 1.6 * 0.8 - 0.25 * 0.64 + 1.2 * 0.2,
+                                      1.6 * 0.8 - 0.25 * 0.64 + 1.2 * 1.2,
+                                      1.6 * 0.8 - 0.25 * 0.64 + 1.2 * 3.2])  # slows down, 0.8 s
+    assert np.all(np.diff(d, axis=1) > 0)
+
+
+def test_pace_ramp_spaces_the_path_guidance_from_the_current_speed(model_dir, monkeypatch):
+    import navzoo.agents.diffusion.crowd as dc
+
+    refs = []
+    original = dc.path_cost
+
+    def spy(points, *args, **kwargs):
+        refs.append(points.numpy().copy())
+        return original(points, *args, **kwargs)
+
+    monkeypatch.setattr(dc, "path_cost", spy)
+    env = NavEnv(scene="corridor", n_robots=0, n_humans=1, crowd_model="diffusion", diffusion_model=str(model_dir),
+                 diffusion_samples=1, time_limit=2.0)
+    env.reset(seed=0)
+    assert env.diffusion.pace_ramp == 0.0  # off by default
+    env.diffusion.hist[:] = env.pos[:, None, :] - np.array([0.0, 1e-3]) * np.arange(8)[::-1, None]  # nearly still
+    env.diffusion.plan_now(env)
+    env.diffusion.pace_ramp = 0.5
+    env.diffusion.plan_now(env)
+    env.close()
+    plain, ramped = (np.linalg.norm(np.diff(r[0], axis=0), axis=-1)[:4] for r in refs)  # spacing along the path
+    v = env.v_pref[0]
+    np.testing.assert_allclose(plain, 0.4 * v, atol=1e-4)  # the corridor's path is straight here
+    v0 = 1e-3 / 0.4
+    np.testing.assert_allclose(ramped, v0 * 0.4 + 0.5 * 0.4 ** 2 * (np.arange(1, 5) + 0.5), atol=1e-4)
+    with pytest.raises(ValueError, match="pace_ramp"):
+        DiffusionCrowd(TrajectoryDiffusion(CFG), pace_ramp=-1.0)

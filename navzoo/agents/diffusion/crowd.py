@@ -236,13 +236,27 @@ def _freest_extension(env: NavEnv, start: np.ndarray, end: np.ndarray, clearance
     return best
 
 
+def ramped_distances(v0: np.ndarray, v_pref: np.ndarray, accel: float, times: np.ndarray) -> np.ndarray:
+    """(B, T) distances walked in ``times`` (T,) seconds by people who start at speed ``v0`` (B,) and change it
+    toward ``v_pref`` (B,) at ``accel`` m/s² (then hold it); ``accel`` 0 or less: ``v_pref x t`` (no ramp)."""
+    v0 = np.asarray(v0, dtype=float)[:, None]
+    v = np.asarray(v_pref, dtype=float)[:, None]
+    t = np.asarray(times, dtype=float)[None, :]
+    if not accel > 0:
+        return v * t
+    a = np.where(v >= v0, accel, -accel)
+    t_r = np.abs(v - v0) / accel  # seconds to reach v_pref
+    tt = np.minimum(t, t_r)
+    return v0 * tt + 0.5 * a * tt ** 2 + v * np.maximum(t - t_r, 0.0)
+
+
 def _end_targets(env: NavEnv, people: np.ndarray, horizon_s: float, extend: bool,
                  past_goal_turn_deg: float = 0.0,
                  sight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
                  hold_in_sight: bool = True, hold_floor_s: float = 0.0, floor_in_sight: bool = False,
-                 floor_ray: bool = False) -> np.ndarray:
+                 floor_ray: bool = False, reach: np.ndarray | None = None) -> np.ndarray:
     """(B, 2) world end targets of the plans of agents ``people``: the point of each one's A* path
-    ``v_pref x horizon_s`` ahead (:func:`_ahead_from_nearest`). With ``extend``, a target that would be held at
+    ``v_pref x horizon_s`` ahead (or ``reach`` (B,) m ahead, when given) (:func:`_ahead_from_nearest`). With ``extend``, a target that would be held at
     the goal is carried past it instead, along the path's last line (or turned by up to ``past_goal_turn_deg``
     toward the longest free run, :func:`_freest_extension`), and stops where free space ends beyond the goal.
 
@@ -250,20 +264,21 @@ def _end_targets(env: NavEnv, people: np.ndarray, horizon_s: float, extend: bool
     would pull it across the walls between the goal and the path (until 2026-12-02 it did, for about half the
     plans in the home; docs/crowd.md, "End targets left on the path").
     """
-    target = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * horizon_s,
+    ahead = env.v_pref[people] * horizon_s if reach is None else np.asarray(reach, dtype=float)
+    target = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], ahead[b],
                                            sight=sight, hold_in_sight=hold_in_sight,
                                            hold_floor=env.v_pref[i] * hold_floor_s, floor_in_sight=floor_in_sight,
                                            floor_ray=floor_ray)
-                       for i in people]).reshape(-1, 2)
+                       for b, i in enumerate(people)]).reshape(-1, 2)
     if not extend or len(people) == 0:
         return target
     ends = np.array([env.paths[i][-1] for i in people])  # the goals
     past = np.linalg.norm(target - ends, axis=1) < 1e-9
     if past.any():
-        carried = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * horizon_s,
+        carried = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], a,
                                                 True, sight, hold_in_sight, env.v_pref[i] * hold_floor_s, floor_in_sight,
                                                 floor_ray)
-                            for i in people[past]])
+                            for i, a in zip(people[past], ahead[past], strict=True)])
         clearance = float(env.config.human_radius) + 0.1
         target[past] = (_freest_extension(env, ends[past], carried, clearance, past_goal_turn_deg)
                         if past_goal_turn_deg > 0 else _clip_to_free(env, ends[past], carried, clearance))
@@ -325,7 +340,7 @@ class DiffusionCrowd:
                  path_weight: float = 20.0, blend_s: float = 1.2, smooth_weight: float = 0.0,
                  agent_buffer: float = 0.2, past_goal_turn_deg: float = 0.0, path_in_sight: bool = True,
                  hold_in_sight: bool = True, hold_floor_s: float = 2.0, floor_in_sight: bool = True,
-                 floor_ray: bool = False) -> None:
+                 floor_ray: bool = False, pace_ramp: float = 0.0) -> None:
         if model is None or isinstance(model, (str, Path)):
             from navzoo.agents.diffusion.trainer import load_model
 
@@ -364,6 +379,9 @@ class DiffusionCrowd:
         self.hold_floor_s = float(hold_floor_s)
         self.floor_in_sight = bool(floor_in_sight)
         self.floor_ray = bool(floor_ray)
+        if not pace_ramp >= 0:
+            raise ValueError(f"pace_ramp must be >= 0, got {pace_ramp!r}")
+        self.pace_ramp = float(pace_ramp)
         self.n = 0
 
     # ------------------------------------------------------------------ state
@@ -454,8 +472,12 @@ class DiffusionCrowd:
         # would slow down further as the goal comes closer); people who stop there aim at it.
         extend = env.config.human_at_goal != "stop"
         sight = _in_sight(env) if self.path_in_sight else None
+        steps = np.arange(1, H + 1) * MODEL_DT
+        v0 = np.linalg.norm(self.hist[people][:, -1] - self.hist[people][:, -2], axis=1) / MODEL_DT
+        along_d = ramped_distances(v0, env.v_pref[people], self.pace_ramp, steps)  # (B, H) m along the path
         target_w = _end_targets(env, people, horizon_s, extend, self.past_goal_turn_deg, sight, self.hold_in_sight,
-                                self.hold_floor_s, self.floor_in_sight, self.floor_ray)
+                                self.hold_floor_s, self.floor_in_sight, self.floor_ray,
+                                reach=along_d[:, -1] if self.pace_ramp > 0 else None)
         target = fdata.to_local(target_w[:, None, :], local)[:, 0]
         if self.cfg.goal:  # a goal-conditioned model gets the waypoint as its goal (guidance still pulls)
             batch["goal"] = torch.as_tensor(target, dtype=torch.float32)
@@ -464,12 +486,11 @@ class DiffusionCrowd:
         costs = [target_cost(torch.as_tensor(target, dtype=torch.float32), t_w,
                              valid=torch.as_tensor(~standing))]
         if self.path_weight > 0:  # every step near the A* path at the person's pace (around walls, not through)
-            steps = np.arange(1, H + 1) * MODEL_DT
-            along = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], env.v_pref[i] * steps,
+            along = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], along_d[b],
                                                   sight=sight, hold_in_sight=self.hold_in_sight,
                                                   hold_floor=env.v_pref[i] * self.hold_floor_s,
                                                   floor_in_sight=self.floor_in_sight, floor_ray=self.floor_ray)
-                              for i in people])  # (B, H, 2) world, held at the goal
+                              for b, i in enumerate(people)])  # (B, H, 2) world, held at the goal
             ref = fdata.to_local(along, local)
             costs.append(path_cost(torch.as_tensor(ref, dtype=torch.float32), self.path_weight,
                                    valid=torch.as_tensor(~standing)))

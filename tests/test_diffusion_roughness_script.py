@@ -1,0 +1,55 @@
+"""scripts/diffusion_roughness.py: the walked accelerations split at goal arrivals, and its walker settings."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+_SPEC = importlib.util.spec_from_file_location(
+    "diffusion_roughness", Path(__file__).resolve().parents[1] / "scripts" / "diffusion_roughness.py")
+dr = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(dr)
+
+
+def test_accelerations_near_a_goal_turn_are_split_from_the_straight_walk():
+    # 1 m/s along +x for 10 s, a turn back at t = 10 s (the goal), 1 m/s along -x for 10 s; sampled at 0.1 s
+    t = np.arange(0, 20.0001, 0.1)
+    x = np.where(t <= 10, t, 20 - t)
+    xy = np.stack([x, np.zeros_like(x)], axis=1)
+    near, between = dr.split_at_goals(t, xy, np.array([10.0]), step=0.4, window=2.0)
+    assert near.size + between.size == 49  # 51 samples at 0.4 s: 49 accelerations
+    assert np.all(between < 1e-9)  # straight, constant speed
+    assert near.max() == pytest.approx(2 * 1.0 / 0.4 ** 2 * 0.4, rel=1e-6)  # the reversal: |dv| = 2 m/s in one step
+    assert near.size == 11  # samples within 2 s of t = 10 s, every 0.4 s
+    none_near, all_between = dr.split_at_goals(t, xy, np.zeros(0), step=0.4)
+    assert none_near.size == 0 and all_between.size == 49
+
+
+def test_split_drops_the_still_start_and_keeps_its_times():
+    # still for 2 s, then 1 m/s; a goal at t = 3 s lies 1 s after the start of walking
+    t = np.arange(0, 8.0001, 0.1)
+    x = np.maximum(t - 2.0, 0.0)
+    xy = np.stack([x, np.zeros_like(x)], axis=1)
+    near, between = dr.split_at_goals(t, xy, np.array([3.0]), step=0.4, window=1.0)
+    # the kept samples start at 2.0 s; accelerations belong to the samples at 2.4, 2.8, ...; within 1 s of 3.0 s:
+    # 2.4, 2.8, 3.2, 3.6, 4.0
+    assert near.size == 5
+    assert near.size + between.size == 14  # 16 kept samples (2.0 ... 8.0 s)
+
+
+def test_walker_settings_name_social_force_fields():
+    from navzoo.agents.sfm import SocialForceParams
+
+    base = SocialForceParams()
+    p = dr.walker_params(base, {"max_accel": 1.0, "tau": 2})
+    assert p.max_accel == 1.0 and p.tau == 2.0 and isinstance(p.tau, float)
+    with pytest.raises(SystemExit, match="no field"):
+        dr.walker_params(base, {"max_acel": 1.0})
+
+
+def test_rule_based_crowds_refuse_diffusion_settings():
+    with pytest.raises(SystemExit, match="takes no variant settings"):
+        dr.run("corridor", 1, 1.0, {"guidance_scale": 0.0}, crowd_model="sfm")
+    with pytest.raises(SystemExit, match="takes no variant settings"):
+        dr.run("corridor", 1, 1.0, {"walker_tau": 1.0}, crowd_model="orca")
