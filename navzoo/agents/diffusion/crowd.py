@@ -328,6 +328,11 @@ class DiffusionCrowd:
             through the last path point in sight (through a door, past a wall's end), not along the hidden path
             behind the wall; past a pillar, as ``floor_in_sight`` (:func:`_ahead_from_nearest`). Measured behind
             both on six seeds, so off (docs/crowd.md, "The floor along the line of sight").
+        pace_ramp: with > 0 (m/s²), the path guidance's points (and the end target) are spaced by a pace that
+            changes from the person's current speed (its last history step) toward its preferred one at this rate
+            (:func:`ramped_distances`), instead of the preferred pace from the first step. 0 = off (the default):
+            ramps of 0.3, 0.5 and 1.0 left the walked acceleration as it was (docs/crowd.md, "Where the roughness
+            comes from: goals, corners and the walker").
         k_neighbors, neighbor_radius: neighbours given to the model.
         seed: seed of the sampling noise (with the env's step count, so replays are exact).
         device: torch device of the model.
