@@ -31,6 +31,28 @@ def test_seed_rates_pool_trips_and_keep_only_complete_seeds():
         pn.seed_rates(rows, ["ref", "c1"], ("a", "b"), seeds=[1])
 
 
+def test_other_metrics_and_per_goal_counts():
+    rows = [_row("ref", "a", 0, 9, 1, fall=2), _row("c1", "a", 0, 6, 4)]
+    rows[0]["by_goal"] = {"success": 8, "off_path": 0, "fall": 2, "timeout": 0, "map_trips": 1, "agent_trips": 0}
+    rows[1]["by_goal"] = {"success": 6, "off_path": 0, "fall": 0, "timeout": 2, "map_trips": 0, "agent_trips": 0}
+    assert pn.seed_rates(rows, ["ref", "c1"], ("a",), metric="fall_rate") == {"ref": {0: 2 / 12}, "c1": {0: 0.0}}
+    assert pn.seed_rates(rows, ["ref", "c1"], ("a",), metric="per_goal_success_rate") == {"ref": {0: 0.8},
+                                                                                         "c1": {0: 0.75}}
+    assert pn.seed_rates(rows, ["ref", "c1"], ("a",), metric="per_goal_map_collision_rate")["ref"] == {0: 0.1}
+    with pytest.raises(ValueError, match="unknown metric 'falls'"):
+        pn.seed_rates(rows, ["ref", "c1"], ("a",), metric="falls")
+    rows[1]["by_goal"] = {}
+    with pytest.raises(ValueError, match="rows of 'c1' on seed 0 have no per-goal counts"):
+        pn.seed_rates(rows, ["ref", "c1"], ("a",), metric="per_goal_success_rate")
+
+
+def test_seeds_needed_for_chosen_differences():
+    rates = {"ref": {0: 0.010, 1: 0.020, 2: 0.012}, "c1": {0: 0.014, 1: 0.012, 2: 0.016}}
+    res = pn.noise(rates, "ref", ["c1"], differences=(0.5, 1))
+    assert set(res["seeds_needed"]) == {"0.5", "1"}
+    assert res["seeds_needed"]["0.5"] >= res["seeds_needed"]["1"] >= 2
+
+
 def test_noise_separates_seed_effect_from_the_residual():
     # policy x seed grid: seed effects (0, +10, -10 points), the reference 2 points above its copies, and a residual
     # of +-1 point that alternates
@@ -53,7 +75,7 @@ def test_noise_separates_seed_effect_from_the_residual():
 def test_equal_policies_have_no_difference_and_one_seed_no_spread():
     rates = {"ref": {0: 0.6, 1: 0.7}, "c1": {0: 0.6, 1: 0.7}}
     res = pn.noise(rates, "ref", ["c1"])
-    assert res["diff_mean"] == 0 and res["residual_sd"] == 0 and res["seeds_needed"]["2"] == 0
+    assert res["diff_mean"] == 0 and res["residual_sd"] == 0 and res["seeds_needed"]["2"] == 2  # two at least
     one = pn.noise({"ref": {3: 0.6}, "c1": {3: 0.5}}, "ref", ["c1"])
     assert one["diff_by_seed"] == [10.0] and math.isnan(one["residual_sd"]) and one["seeds_needed"] == {}
 
@@ -74,7 +96,11 @@ def test_cli_prints_the_table_and_refuses_bad_input(tmp_path, capsys):
                       (["--files", str(f), "--reference", "ref", "--controls", "ref"], "other than the reference"),
                       (["--files", str(f), "--reference", "ref", "--controls", "c9"], "no rows of configuration 'c9'"),
                       (["--files", str(f), "--reference", "ref", "--controls", "c1", "--scenes", "nowhere"],
-                       "nowhere")):
+                       "nowhere"),
+                      (["--files", str(f), "--reference", "ref", "--controls", "c1", "--differences", "0,1"],
+                       "--differences must be positive"),
+                      (["--files", str(f), "--reference", "ref", "--controls", "c1", "--metric", "falls"],
+                       "invalid choice")):
         with pytest.raises(SystemExit):
             pn.main(argv)
         assert msg in capsys.readouterr().err
