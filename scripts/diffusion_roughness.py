@@ -14,7 +14,9 @@ the preferred velocity aims at (``preferred_velocities(lookahead=)``). Two probe
 withholds the neighbours' histories (the model plans as if alone; the people guidance still acts). Two probes of the
 walker, the social force that carries each kinematic body along its plan: ``walker_FIELD=V`` sets a field of its
 :class:`~navzoo.agents.sfm.SocialForceParams` (e.g. ``walker_max_accel=1.0``), ``orca_walker=1`` walks the plans
-with ORCA instead. ``pace_ramp=A`` (a ``DiffusionCrowd`` setting) spaces the path guidance's points by a pace that
+with ORCA instead (``NavConfig.diffusion_walker="orca"``, with :data:`~navzoo.agents.diffusion.crowd.ORCA_WALKER`),
+and ``orca_FIELD=V`` sets a field of its :class:`~navzoo.agents.orca.OrcaParams` (also for ``--crowd orca``, from
+ORCA's defaults; e.g. ``orca_time_horizon=5``). ``pace_ramp=A`` (a ``DiffusionCrowd`` setting) spaces the path guidance's points by a pace that
 changes from the person's current speed toward its preferred one at A m/s². Prints, per variant, the mean
 walked speed, acceleration and jerk, the mean acceleration of the plans themselves (every plan made,
 at its 0.4 s points), goals reached and the overlap share (centres closer than 0.4 m), and the walked
@@ -34,8 +36,8 @@ import numpy as np
 import torch
 
 from navzoo.agents.crowd import CrowdPolicy
-from navzoo.agents.orca import orca_velocities
-from navzoo.agents.sfm import SocialForceParams
+from navzoo.agents.diffusion.crowd import ORCA_WALKER
+from navzoo.agents.orca import OrcaParams
 from navzoo.benchmark.crowd_eval import (
     MIN_START_SPEED,
     STEP,
@@ -144,13 +146,13 @@ def _diffusion_probes(crowd, settings: dict[str, float]) -> list[np.ndarray]:
     return plans
 
 
-def walker_params(base: SocialForceParams, walker: dict[str, float]) -> SocialForceParams:
-    """``base`` with the ``walker_FIELD=V`` settings of a variant (names without the prefix), each of the field's type;
-    unknown fields are refused."""
-    fields = {f.name for f in dataclasses.fields(SocialForceParams) if f.init}
+def walker_params(base, walker: dict[str, float]):
+    """``base`` (a :class:`SocialForceParams` or :class:`OrcaParams`) with the ``walker_FIELD=V`` / ``orca_FIELD=V``
+    settings of a variant (names without the prefix), each of the field's type; unknown fields are refused."""
+    fields = {f.name for f in dataclasses.fields(type(base)) if f.init}
     unknown = sorted(set(walker) - fields)
     if unknown:
-        raise SystemExit(f"SocialForceParams has no field(s) {unknown}; choose from {sorted(fields)}")
+        raise SystemExit(f"{type(base).__name__} has no field(s) {unknown}; choose from {sorted(fields)}")
     return dataclasses.replace(base, **{k: type(getattr(base, k))(v) for k, v in walker.items()})
 
 
@@ -159,24 +161,21 @@ def run(scene: str, n: int, seconds: float, settings: dict[str, float], seed: in
     settings = dict(settings)
     orca_walker = bool(settings.pop("orca_walker", 0))
     walker = {k[len("walker_"):]: v for k, v in settings.items() if k.startswith("walker_")}
-    settings = {k: v for k, v in settings.items() if not k.startswith("walker_")}
+    orca = {k[len("orca_"):]: v for k, v in settings.items() if k.startswith("orca_")}
+    settings = {k: v for k, v in settings.items() if not k.startswith(("walker_", "orca_"))}
+    if orca and not orca_walker and crowd_model != "orca":
+        raise SystemExit(f"orca_FIELD settings {sorted(orca)} need orca_walker=1 (or --crowd orca)")
     if crowd_model != "diffusion" and (settings or orca_walker or (walker and crowd_model != "sfm")):
-        raise SystemExit(f"the {crowd_model} crowd takes no variant settings but walker_FIELD=V (sfm only), "
+        raise SystemExit(f"the {crowd_model} crowd takes no variant settings but walker_FIELD=V (sfm) and "
+                         f"orca_FIELD=V (orca), "
                          f"got {sorted(settings) + (['orca_walker'] if orca_walker else []) + sorted(walker)}")
-    env = NavEnv(scene=scene, n_robots=0, n_humans=n, crowd_model=crowd_model, time_limit=seconds)
+    walker_kw = {"diffusion_walker": "orca" if orca_walker else "sfm"} if crowd_model == "diffusion" else {}
+    env = NavEnv(scene=scene, n_robots=0, n_humans=n, crowd_model=crowd_model, time_limit=seconds, **walker_kw)
     plans = _diffusion_probes(env.diffusion, settings) if crowd_model == "diffusion" else []
-    policy = CrowdPolicy(crowd_model)
+    orca_base = ORCA_WALKER if crowd_model == "diffusion" else OrcaParams()
+    policy = CrowdPolicy(crowd_model, orca_params=walker_params(orca_base, orca) if orca else None)
     if walker:
         policy.sfm_params = walker_params(env.crowd_sfm_params, walker)
-    if orca_walker:  # the plans' preferred velocities, walked by ORCA instead of social force
-        def orca_walk(env_: NavEnv) -> np.ndarray:
-            h = np.arange(env_.n_robots, env_.n_total)
-            pref = env_.crowd_conventions(env_.diffusion.preferred_velocities(env_), env_.sim_time)
-            vmax = np.full(h.size, env_.config.human_max_speed)
-            return orca_velocities(env_.pos[h], env_.vel[h], pref, env_.radius[h], vmax, env_.config.dt,
-                                   policy.orca_params, env_.segments, n_active=h.size)
-
-        policy.velocities = orca_walk
     wrapped = FrozenAgents(env, lambda a: a.startswith("human_"), policy)
     t0 = time.time()
     wrapped.reset(seed=seed)

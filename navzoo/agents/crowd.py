@@ -28,12 +28,15 @@ class CrowdPolicy:
             semantics and CrowdNav's settings: maximum speed = preferred speed, discs 0.01 m larger
             inside ORCA, slowing down within 1 m of the goal, as CrowdNav's pedestrians) or
             ``"diffusion"`` (the env's :class:`navzoo.agents.diffusion.crowd.DiffusionCrowd` plans as
-            preferred velocities, social force for the bodies in between) or ``"replay"`` (recorded
+            preferred velocities, and social force, or ORCA with ``NavConfig.diffusion_walker="orca"``, for the bodies
+            in between) or ``"replay"`` (recorded
             ETH/UCY tracks, :mod:`navzoo.agents.replay`: the env moves the people itself and ignores
             their actions; this policy returns their recorded velocities as actions, for completeness).
         see_robots: whether people react to robots (False = CrowdNav's invisible robot).
         sfm_params / orca_params: model parameters. Without ``sfm_params`` (None) the social force takes the env's
-            (``NavEnv.crowd_sfm_params``: the defaults, with the config's ``crowd_wall_*`` walls).
+            (``NavEnv.crowd_sfm_params``: the defaults, with the config's ``crowd_wall_*`` walls). Without
+            ``orca_params`` ORCA takes its defaults, and the diffusion crowd's ORCA walker
+            :data:`navzoo.agents.diffusion.crowd.ORCA_WALKER`.
     """
 
     def __init__(
@@ -48,6 +51,7 @@ class CrowdPolicy:
         self.model = model
         self.see_robots = see_robots
         self.sfm_params = sfm_params
+        self._orca_given = orca_params is not None
         if orca_params is None:
             orca_params = OrcaParams(right_bias=0.0, one_step_safety=False) if model == "orca_rvo2" else OrcaParams()
         self.orca_params = orca_params
@@ -75,7 +79,8 @@ class CrowdPolicy:
             pref = env.human_preferred_velocity(slow_radius=1.0 if self.model == "orca_rvo2" else 0.5)
         vmax = np.full(h.size, env.config.human_max_speed)
         robots = np.flatnonzero(env.alive[:R]) if self.see_robots else np.zeros(0, dtype=int)
-        if self.model in ("sfm", "diffusion"):
+        orca_walker = self.model == "diffusion" and env.config.diffusion_walker == "orca"
+        if self.model == "sfm" or (self.model == "diffusion" and not orca_walker):
             return social_force_velocities(
                 pos, vel, pref, rad, vmax, env.config.dt, self.sfm_params or env.crowd_sfm_params, env.segments,
                 others_pos=env.pos[robots], others_vel=env.vel[robots], others_radius=env.radius[robots],
@@ -84,12 +89,18 @@ class CrowdPolicy:
         if self.model == "orca_rvo2":  # CrowdNav's people: RVO2 agents of max speed v_pref, discs + 0.01 m
             vmax = env.v_pref[h].copy()
             rad = rad + 0.01
+        params = self.orca_params
+        if orca_walker:
+            from navzoo.agents.diffusion import crowd as diffusion_crowd
+
+            params = self.orca_params if self._orca_given else diffusion_crowd.ORCA_WALKER
+            rad = rad + diffusion_crowd.ORCA_WALKER_MARGIN  # ORCA keeps discs just touching: room to spare
         all_pos = np.concatenate([pos, env.pos[robots]])
         all_vel = np.concatenate([vel, env.vel[robots]])
         all_pref = np.concatenate([pref, env.vel[robots]])
         all_rad = np.concatenate([rad, env.radius[robots]])
         all_max = np.concatenate([vmax, np.full(robots.size, env.config.robot.max_speed)])
-        return orca_velocities(all_pos, all_vel, all_pref, all_rad, all_max, env.config.dt, self.orca_params,
+        return orca_velocities(all_pos, all_vel, all_pref, all_rad, all_max, env.config.dt, params,
                                env.segments, n_active=h.size)
 
     def act(self, observations: dict[str, Any], env: NavEnv) -> dict[str, np.ndarray]:

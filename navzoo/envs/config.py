@@ -48,6 +48,11 @@ class NavConfig:
             ``$NAVZOO_DIFFUSION_MODEL`` if set, else the shipped ``policies/trajectory_diffusion``).
         diffusion_samples: ``crowd_model="diffusion"``: futures sampled per person and plan (the one
             of lowest guidance cost is walked).
+        diffusion_walker: ``crowd_model="diffusion"`` with kinematic bodies: what carries each body along its plan
+            between the plans' points and keeps it off the others and the walls: ``"sfm"`` (social force, as the
+            rule-based crowd) or ``"orca"`` (ORCA with short horizons,
+            :data:`navzoo.agents.diffusion.crowd.ORCA_WALKER`: smoother and faster in crowds, docs/crowd.md
+            "An ORCA walker"). Physics (AMP) bodies follow their own target rollouts and ignore it.
         replay_scene: ``crowd_model="replay"``: the recording to play (``"eth"``, ``"univ"``,
             ``"zara1"``, ``"zara3"``, ``"uni_examples"``; ``"hotel"``, ``"zara2"`` where their files
             exist). ``None`` = taken from ``scene="replay_<recording>"``. With the default ``scene``,
@@ -203,6 +208,7 @@ class NavConfig:
     crowd_model: CrowdModel = "sfm"
     diffusion_model: str | None = None
     diffusion_samples: int = 4
+    diffusion_walker: str = "sfm"
     replay_scene: str | None = None
     replay_start: float = 0.0
     humans_see_robots: bool = True
@@ -312,6 +318,8 @@ class NavConfig:
             raise bad("diffusion_model", "None or a path to an exported trajectory diffusion model")
         if not _is_int(self.diffusion_samples) or self.diffusion_samples < 1:
             raise bad("diffusion_samples", "an integer >= 1")
+        if self.diffusion_walker not in ("sfm", "orca"):
+            raise bad("diffusion_walker", "'sfm' or 'orca'")
         if not isinstance(self.humans_see_robots, bool):
             raise bad("humans_see_robots", "a bool")
         if not isinstance(self.human_yielding, bool):

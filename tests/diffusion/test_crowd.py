@@ -212,6 +212,8 @@ def test_crowd_model_name_is_validated():
         NavEnv(scene="lobby", crowd_model="trace")
     with pytest.raises(ValueError, match="diffusion_samples"):
         NavEnv(scene="lobby", crowd_model="diffusion", diffusion_samples=0)
+    with pytest.raises(ValueError, match="diffusion_walker"):
+        NavEnv(scene="lobby", crowd_model="diffusion", diffusion_walker="rvo")
 
 
 def test_amp_target_paths_start_at_the_bodies_and_ramp_up_from_their_speed(model_dir):
@@ -408,3 +410,41 @@ def test_pace_ramp_spaces_the_path_guidance_from_the_current_speed(model_dir, mo
     np.testing.assert_allclose(ramped, v0 * 0.4 + 0.5 * 0.4 ** 2 * (np.arange(1, 5) + 0.5), atol=1e-4)
     with pytest.raises(ValueError, match="pace_ramp"):
         DiffusionCrowd(TrajectoryDiffusion(CFG), pace_ramp=-1.0)
+
+
+def test_orca_walker_carries_the_bodies_along_their_plans(model_dir, monkeypatch):
+    import navzoo.agents.crowd as crowd_mod
+    from navzoo.agents.diffusion.crowd import ORCA_WALKER
+    from navzoo.agents.orca import OrcaParams
+
+    calls = []
+    orca = crowd_mod.orca_velocities
+
+    def spy(*args, **kwargs):
+        calls.append(args[6])  # the OrcaParams
+        return orca(*args, **kwargs)
+
+    monkeypatch.setattr(crowd_mod, "orca_velocities", spy)
+
+    def walk(walker, policy):
+        env = NavEnv(scene="lobby", n_robots=1, n_humans=4, crowd_model="diffusion", diffusion_model=str(model_dir),
+                     diffusion_samples=1, diffusion_walker=walker, time_limit=3.0)
+        wrapped = FrozenAgents(env, lambda a: a.startswith("human_"), policy)
+        wrapped.reset(seed=0)
+        start = env.pos[1:].copy()
+        for _ in range(20):
+            wrapped.step({"robot_0": np.zeros(2, dtype=np.float32)})
+        moved = np.linalg.norm(env.pos[1:] - start, axis=1)
+        gap = min(np.linalg.norm(env.pos[i] - env.pos[j]) for i in range(5) for j in range(i + 1, 5))
+        wrapped.close()
+        return moved, gap
+
+    moved, _ = walk("sfm", CrowdPolicy("diffusion"))
+    assert not calls and moved.min() > 0.3  # social force by default
+    moved, gap = walk("orca", CrowdPolicy("diffusion"))
+    assert calls and all(p == ORCA_WALKER for p in calls)
+    assert moved.min() > 0.3 and gap > 2 * 0.3 - 1e-6  # the people walk, no two bodies overlap (robot included)
+    calls.clear()
+    own = OrcaParams(time_horizon=3.0)
+    walk("orca", CrowdPolicy("diffusion", orca_params=own))
+    assert calls and all(p == own for p in calls)  # parameters given to the policy win

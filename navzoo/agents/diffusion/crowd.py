@@ -44,6 +44,7 @@ from navzoo.agents.diffusion.guidance import (
     target_cost,
 )
 from navzoo.agents.diffusion.model import TrajectoryDiffusion
+from navzoo.agents.orca import OrcaParams
 from navzoo.forecast import data as fdata
 
 if TYPE_CHECKING:
@@ -52,6 +53,13 @@ if TYPE_CHECKING:
 __all__ = ["DiffusionCrowd", "default_model_dir", "model_dir"]
 
 MODEL_DT = 0.4  # s per model step (ETH/UCY protocol)
+#: ORCA of the diffusion crowd's kinematic bodies with ``NavConfig.diffusion_walker="orca"``: the plans already keep
+#: people apart, so the walker looks 1.5 s ahead for people and 0.5 s for walls (ORCA's defaults, 5 s each, stall the
+#: crowd in navzoo's rooms and doors; docs/crowd.md, "An ORCA walker").
+ORCA_WALKER = OrcaParams(time_horizon=1.5, time_horizon_obst=0.5)
+#: m added to each person's radius inside the ORCA walker: ORCA holds discs exactly touching, which the contact counts
+#: (centres closer than two radii, the centre within a radius of a wall) would count as contacts.
+ORCA_WALKER_MARGIN = 0.05
 MAP_EXTENT = 8.0  # m, side of the occupancy / distance crops
 ACCEL_LIMIT = 1.0  # m/s², largest rise of pace along a physics body's target path (plan_positions)
 AMP_SPEED_FACTOR = 1.0  # x v_pref: the fastest pace along a physics body's target path
