@@ -93,7 +93,8 @@ class CrowdPolicy:
         if orca_walker:
             from navzoo.agents.diffusion import crowd as diffusion_crowd
 
-            params = self.orca_params if self._orca_given else diffusion_crowd.ORCA_WALKER
+            if not self._orca_given:
+                params = diffusion_crowd.ORCA_WALKER
             rad = rad + diffusion_crowd.ORCA_WALKER_MARGIN  # ORCA keeps discs just touching: room to spare
         all_pos = np.concatenate([pos, env.pos[robots]])
         all_vel = np.concatenate([vel, env.vel[robots]])
