@@ -16,7 +16,8 @@ walker, the social force that carries each kinematic body along its plan: ``walk
 :class:`~navzoo.agents.sfm.SocialForceParams` (e.g. ``walker_max_accel=1.0``), ``orca_walker=1`` walks the plans
 with ORCA instead (``NavConfig.diffusion_walker="orca"``, with :data:`~navzoo.agents.diffusion.crowd.ORCA_WALKER`),
 and ``orca_FIELD=V`` sets a field of its :class:`~navzoo.agents.orca.OrcaParams` (also for ``--crowd orca``, from
-ORCA's defaults; e.g. ``orca_time_horizon=5``). ``pace_ramp=A`` (a ``DiffusionCrowd`` setting) spaces the path guidance's points by a pace that
+ORCA's defaults; e.g. ``orca_time_horizon=5``); ``hybrid_walker=1`` walks them with that ORCA and hands the people it
+holds still to social force (``NavConfig.diffusion_walker="hybrid"``). ``pace_ramp=A`` (a ``DiffusionCrowd`` setting) spaces the path guidance's points by a pace that
 changes from the person's current speed toward its preferred one at A m/s². Prints, per variant, the mean
 walked speed, acceleration and jerk, the mean acceleration of the plans themselves (every plan made,
 at its 0.4 s points), goals reached and the overlap share (centres closer than 0.4 m), and the walked
@@ -159,7 +160,8 @@ def walker_params(base, walker: dict[str, float]):
 def run(scene: str, n: int, seconds: float, settings: dict[str, float], seed: int = 0,
         crowd_model: str = "diffusion") -> dict:
     settings = dict(settings)
-    orca_walker = bool(settings.pop("orca_walker", 0))
+    hybrid_walker = bool(settings.pop("hybrid_walker", 0))
+    orca_walker = bool(settings.pop("orca_walker", 0)) or hybrid_walker
     walker = {k[len("walker_"):]: v for k, v in settings.items() if k.startswith("walker_")}
     orca = {k[len("orca_"):]: v for k, v in settings.items() if k.startswith("orca_")}
     settings = {k: v for k, v in settings.items() if not k.startswith(("walker_", "orca_"))}
@@ -169,7 +171,8 @@ def run(scene: str, n: int, seconds: float, settings: dict[str, float], seed: in
         raise SystemExit(f"the {crowd_model} crowd takes no variant settings but walker_FIELD=V (sfm) and "
                          f"orca_FIELD=V (orca), "
                          f"got {sorted(settings) + (['orca_walker'] if orca_walker else []) + sorted(walker)}")
-    walker_kw = {"diffusion_walker": "orca" if orca_walker else "sfm"} if crowd_model == "diffusion" else {}
+    name = "hybrid" if hybrid_walker else "orca" if orca_walker else "sfm"
+    walker_kw = {"diffusion_walker": name} if crowd_model == "diffusion" else {}
     env = NavEnv(scene=scene, n_robots=0, n_humans=n, crowd_model=crowd_model, time_limit=seconds, **walker_kw)
     plans = _diffusion_probes(env.diffusion, settings) if crowd_model == "diffusion" else []
     orca_base = ORCA_WALKER if crowd_model == "diffusion" else OrcaParams()

@@ -53,3 +53,21 @@ def test_rule_based_crowds_refuse_diffusion_settings():
         dr.run("corridor", 1, 1.0, {"guidance_scale": 0.0}, crowd_model="sfm")
     with pytest.raises(SystemExit, match="takes no variant settings"):
         dr.run("corridor", 1, 1.0, {"walker_tau": 1.0}, crowd_model="orca")
+
+
+@pytest.mark.parametrize("settings, walker", [({}, "sfm"), ({"orca_walker": 1}, "orca"), ({"hybrid_walker": 1}, "hybrid"),
+                                              ({"hybrid_walker": 1, "orca_time_horizon": 2.0}, "hybrid")])
+def test_walker_variants_choose_the_diffusion_walker(monkeypatch, settings, walker):
+    made = []
+
+    class Stop(Exception):
+        pass
+
+    def capture(**kwargs):
+        made.append(kwargs)
+        raise Stop
+
+    monkeypatch.setattr(dr, "NavEnv", capture)
+    with pytest.raises(Stop):
+        dr.run("doorway", 2, 1.0, settings)
+    assert made[0]["diffusion_walker"] == walker

@@ -28,8 +28,8 @@ class CrowdPolicy:
             semantics and CrowdNav's settings: maximum speed = preferred speed, discs 0.01 m larger
             inside ORCA, slowing down within 1 m of the goal, as CrowdNav's pedestrians) or
             ``"diffusion"`` (the env's :class:`navzoo.agents.diffusion.crowd.DiffusionCrowd` plans as
-            preferred velocities, and social force, or ORCA with ``NavConfig.diffusion_walker="orca"``, for the bodies
-            in between) or ``"replay"`` (recorded
+            preferred velocities, and social force, or ORCA with ``NavConfig.diffusion_walker="orca"`` (``"hybrid"``:
+            ORCA, and social force for the people ORCA holds still), for the bodies in between) or ``"replay"`` (recorded
             ETH/UCY tracks, :mod:`navzoo.agents.replay`: the env moves the people itself and ignores
             their actions; this policy returns their recorded velocities as actions, for completeness).
         see_robots: whether people react to robots (False = CrowdNav's invisible robot).
@@ -55,9 +55,12 @@ class CrowdPolicy:
         if orca_params is None:
             orca_params = OrcaParams(right_bias=0.0, one_step_safety=False) if model == "orca_rvo2" else OrcaParams()
         self.orca_params = orca_params
+        self._switch = None  # the "hybrid" diffusion walker's StallSwitch, made at the first step
 
-    def reset(self, env: NavEnv) -> None:  # stateless: everything it needs is in the env
-        return None
+    def reset(self, env: NavEnv) -> None:
+        """Start an episode: only the diffusion crowd's ``"hybrid"`` walker keeps state (who walks with social
+        force, :class:`~navzoo.agents.diffusion.crowd.StallSwitch`); everything else is in the env."""
+        self._switch = None
 
     def velocities(self, env: NavEnv) -> np.ndarray:
         """New world-frame velocities (H, 2) of all pedestrians."""
@@ -79,13 +82,18 @@ class CrowdPolicy:
             pref = env.human_preferred_velocity(slow_radius=1.0 if self.model == "orca_rvo2" else 0.5)
         vmax = np.full(h.size, env.config.human_max_speed)
         robots = np.flatnonzero(env.alive[:R]) if self.see_robots else np.zeros(0, dtype=int)
-        orca_walker = self.model == "diffusion" and env.config.diffusion_walker == "orca"
-        if self.model == "sfm" or (self.model == "diffusion" and not orca_walker):
+        walker = env.config.diffusion_walker if self.model == "diffusion" else None
+        orca_walker = walker in ("orca", "hybrid")
+
+        def social_force() -> np.ndarray:
             return social_force_velocities(
-                pos, vel, pref, rad, vmax, env.config.dt, self.sfm_params or env.crowd_sfm_params, env.segments,
+                pos, vel, pref, env.radius[h], vmax, env.config.dt, self.sfm_params or env.crowd_sfm_params, env.segments,
                 others_pos=env.pos[robots], others_vel=env.vel[robots], others_radius=env.radius[robots],
                 segment_groups=env.segment_groups,
             )
+
+        if self.model == "sfm" or walker == "sfm":
+            return social_force()
         if self.model == "orca_rvo2":  # CrowdNav's people: RVO2 agents of max speed v_pref, discs + 0.01 m
             vmax = env.v_pref[h].copy()
             rad = rad + 0.01
@@ -101,8 +109,18 @@ class CrowdPolicy:
         all_pref = np.concatenate([pref, env.vel[robots]])
         all_rad = np.concatenate([rad, env.radius[robots]])
         all_max = np.concatenate([vmax, np.full(robots.size, env.config.robot.max_speed)])
-        return orca_velocities(all_pos, all_vel, all_pref, all_rad, all_max, env.config.dt, params,
-                               env.segments, n_active=h.size)
+        v = orca_velocities(all_pos, all_vel, all_pref, all_rad, all_max, env.config.dt, params,
+                            env.segments, n_active=h.size)
+        if walker != "hybrid":
+            return v
+        from navzoo.agents.diffusion.crowd import StallSwitch
+
+        if getattr(self, "_switch", None) is None or self._switch.n != h.size:
+            self._switch = StallSwitch(h.size)
+        use = self._switch.update(env.sim_time, env.config.dt, v, pref)
+        if use.any():
+            v[use] = social_force()[use]
+        return v
 
     def act(self, observations: dict[str, Any], env: NavEnv) -> dict[str, np.ndarray]:
         v = self.velocities(env)

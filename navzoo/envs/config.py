@@ -52,7 +52,9 @@ class NavConfig:
             between the plans' points and keeps it off the others and the walls: ``"sfm"`` (social force, as the
             rule-based crowd) or ``"orca"`` (ORCA with short horizons,
             :data:`navzoo.agents.diffusion.crowd.ORCA_WALKER`: smoother and faster in crowds, docs/crowd.md
-            "An ORCA walker"). Physics (AMP) bodies follow their own target rollouts and ignore it.
+            "An ORCA walker") or ``"hybrid"`` (that ORCA, and social force for the people it holds still,
+            :class:`navzoo.agents.diffusion.crowd.StallSwitch`: no jams in doors, docs/crowd.md "A hybrid walker").
+            Physics (AMP) bodies follow their own target rollouts and ignore it.
         replay_scene: ``crowd_model="replay"``: the recording to play (``"eth"``, ``"univ"``,
             ``"zara1"``, ``"zara3"``, ``"uni_examples"``; ``"hotel"``, ``"zara2"`` where their files
             exist). ``None`` = taken from ``scene="replay_<recording>"``. With the default ``scene``,
@@ -318,8 +320,8 @@ class NavConfig:
             raise bad("diffusion_model", "None or a path to an exported trajectory diffusion model")
         if not _is_int(self.diffusion_samples) or self.diffusion_samples < 1:
             raise bad("diffusion_samples", "an integer >= 1")
-        if self.diffusion_walker not in ("sfm", "orca"):
-            raise bad("diffusion_walker", "'sfm' or 'orca'")
+        if self.diffusion_walker not in ("sfm", "orca", "hybrid"):
+            raise bad("diffusion_walker", "'sfm', 'orca' or 'hybrid'")
         if not isinstance(self.humans_see_robots, bool):
             raise bad("humans_see_robots", "a bool")
         if not isinstance(self.human_yielding, bool):

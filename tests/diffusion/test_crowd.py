@@ -448,3 +448,35 @@ def test_orca_walker_carries_the_bodies_along_their_plans(model_dir, monkeypatch
     own = OrcaParams(time_horizon=3.0)
     walk("orca", CrowdPolicy("diffusion", orca_params=own))
     assert calls and all(p == own for p in calls)  # parameters given to the policy win
+
+
+def test_hybrid_walker_hands_the_people_orca_holds_still_to_social_force(model_dir, monkeypatch):
+    import navzoo.agents.crowd as crowd_mod
+    from navzoo.agents.diffusion.crowd import StallSwitch
+
+    def jammed(*args, n_active, **kwargs):  # an ORCA that holds everybody still, as in a deadlocked door
+        return np.zeros((n_active, 2))
+
+    monkeypatch.setattr(crowd_mod, "orca_velocities", jammed)
+
+    def walk(walker):
+        env = NavEnv(scene="lobby", n_robots=0, n_humans=3, crowd_model="diffusion", diffusion_model=str(model_dir),
+                     diffusion_samples=1, diffusion_walker=walker, time_limit=4.0)
+        policy = CrowdPolicy("diffusion")
+        wrapped = FrozenAgents(env, lambda a: a.startswith("human_"), policy)
+        wrapped.reset(seed=0)
+        start, track = env.pos.copy(), []
+        for _ in range(30):
+            wrapped.step({})
+            track.append(np.linalg.norm(env.pos - start, axis=1))
+        wrapped.close()
+        return np.array(track), policy
+
+    track, _ = walk("orca")
+    assert track.max() < 1e-9  # ORCA alone: nobody moves
+    track, policy = walk("hybrid")
+    assert isinstance(policy._switch, StallSwitch) and policy._switch.use.all()
+    assert track[8].max() < 1e-9  # patience (1 s) first
+    assert track[-1].min() > 0.5  # then social force walks them
+    policy.reset(None)
+    assert policy._switch is None  # a new episode starts without anybody switched

@@ -50,7 +50,7 @@ from navzoo.forecast import data as fdata
 if TYPE_CHECKING:
     from navzoo.envs.nav_env import NavEnv
 
-__all__ = ["DiffusionCrowd", "default_model_dir", "model_dir"]
+__all__ = ["DiffusionCrowd", "StallSwitch", "default_model_dir", "model_dir"]
 
 MODEL_DT = 0.4  # s per model step (ETH/UCY protocol)
 #: ORCA of the diffusion crowd's kinematic bodies with ``NavConfig.diffusion_walker="orca"``: the plans already keep
@@ -67,6 +67,51 @@ TURN_STEP_DEG = 30.0  # past_goal_turn_deg: the turns tried past a goal, in step
 BODY_MARGIN = 0.0  # m added to each physics body's radius in the people guidance (0.1 measured no better)
 SIGHT_CLEARANCE = 0.05  # m from obstacles that a line of sight keeps (the distance field has 0.1 m cells)
 SIGHT_STEP = 0.25  # m between the path points tested for sight
+
+
+class StallSwitch:
+    """Who of the diffusion crowd's kinematic bodies walks with social force under the ``"hybrid"`` walker
+    (``NavConfig.diffusion_walker="hybrid"``): ORCA carries everybody along their plans, except the people it holds
+    still. A person is *stalled* while it wants to move (preferred speed above ``min_pref``) and ORCA gives it less
+    than ``stall_frac`` of that speed; after ``patience`` s stalled it walks with social force, which squeezes past
+    where ORCA's strict no-overlap rule deadlocks (two flows in a 1 m door), for ``hold`` s from the last time it
+    was stalled that long. Defaults chosen on the doorway and the lobby (docs/crowd.md, "A hybrid walker").
+
+    Call :meth:`update` once per control step; calls at the same time as the last one do not advance the timers,
+    and an earlier time (a new episode) starts them again.
+    """
+
+    def __init__(self, n: int, stall_frac: float = 0.3, min_pref: float = 0.3, patience: float = 1.0,
+                 hold: float = 2.0) -> None:
+        for name, v in (("stall_frac", stall_frac), ("min_pref", min_pref), ("patience", patience), ("hold", hold)):
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v >= 0):
+                raise ValueError(f"StallSwitch.{name} must be a finite number >= 0, got {v!r}")
+        self.n = int(n)
+        self.stall_frac, self.min_pref, self.patience, self.hold = stall_frac, min_pref, patience, hold
+        self.reset()
+
+    def reset(self) -> None:
+        self.stalled_s = np.zeros(self.n)  # how long each person has been stalled, s
+        self.sfm_until = np.full(self.n, -np.inf)  # social force until this time
+        self.last_t: float | None = None
+        self.use = np.zeros(self.n, dtype=bool)  # the last answer of update
+
+    def update(self, t: float, dt: float, v_orca: np.ndarray, pref: np.ndarray) -> np.ndarray:
+        """(n,) bool: who walks with social force in the step from time ``t`` (the control period ``dt``), given
+        ORCA's velocities ``v_orca`` and the preferred velocities ``pref`` ((n, 2) each)."""
+        if v_orca.shape != (self.n, 2) or pref.shape != (self.n, 2):
+            raise ValueError(f"StallSwitch of {self.n} people got velocities of shapes {v_orca.shape}, {pref.shape}")
+        if self.last_t is not None and t < self.last_t:
+            self.reset()
+        if self.last_t is not None and t == self.last_t:
+            return self.use.copy()
+        self.last_t = t
+        want = np.linalg.norm(pref, axis=1)
+        stalled = (want > self.min_pref) & (np.linalg.norm(v_orca, axis=1) < self.stall_frac * want)
+        self.stalled_s = np.where(stalled, self.stalled_s + dt, 0.0)
+        self.sfm_until[self.stalled_s >= self.patience] = t + self.hold
+        self.use = t < self.sfm_until
+        return self.use.copy()
 
 
 def default_model_dir() -> Path:
