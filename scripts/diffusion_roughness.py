@@ -20,7 +20,8 @@ ORCA's defaults; e.g. ``orca_time_horizon=5``); ``hybrid_walker=1`` walks them w
 holds still to social force (``NavConfig.diffusion_walker="hybrid"``). ``pace_ramp=A`` (a ``DiffusionCrowd`` setting) spaces the path guidance's points by a pace that
 changes from the person's current speed toward its preferred one at A m/s². Prints, per variant, the mean
 walked speed, acceleration and jerk, the mean acceleration of the plans themselves (every plan made,
-at its 0.4 s points), goals reached and the overlap share (centres closer than 0.4 m), and the walked
+at its 0.4 s points), goals reached, the overlap share (centres closer than 0.4 m), the standing share (0.4 s steps under
+:data:`STAND_SPEED`, whole tracks: jams and waits), and the walked
 acceleration split at the goals: within :data:`GOAL_WINDOW_S` of a person's goal arrival (the turn to the next
 goal, which the recordings never show) and the rest (``accel_near_goal_mean``, ``accel_between_goals_mean``,
 ``near_goal_share``).
@@ -83,6 +84,19 @@ def split_at_goals(t: np.ndarray, xy: np.ndarray, arrivals: np.ndarray, step: fl
         return acc[:0], acc
     near = np.min(np.abs(at[:, None] - arrivals[None, :]), axis=1) <= window
     return acc[near], acc[~near]
+
+
+#: m/s: below this speed over a 0.4 s step a person stands (``standing_share``: jams, waits, turns on the spot).
+STAND_SPEED = 0.1
+
+
+def standing(pos: np.ndarray, dt: float, step: float = STEP, speed: float = STAND_SPEED) -> tuple[int, int]:
+    """Person-steps standing in ``pos`` ((T, n, 2) positions every ``dt`` s, whole tracks, no start trimmed): the
+    number of ``step``-long intervals (positions subsampled every ``step`` s) covered at under ``speed``, and the
+    number of intervals."""
+    k = max(1, int(round(step / dt)))
+    sp = np.linalg.norm(np.diff(np.asarray(pos)[::k], axis=0), axis=-1) / (k * dt)
+    return int((sp < speed).sum()), int(sp.size)
 
 
 def fit_histories(h: np.ndarray, deg: int) -> np.ndarray:
@@ -201,6 +215,7 @@ def run(scene: str, n: int, seconds: float, settings: dict[str, float], seed: in
     return {"scene": scene, "people": n, "speed": kin["speed"], "accel": kin["accel"], "jerk": kin["jerk"],
             "plan_accel": plan_acc, "accel_near_goal": np.concatenate([a for a, _ in split]),
             "accel_between_goals": np.concatenate([b for _, b in split]), "goals": goals, "overlap": (hit, total),
+            "standing": standing(pos, env.config.dt),
             "wall_s": time.time() - t0}
 
 
@@ -227,6 +242,7 @@ def main() -> None:
                 **{f"{q}_mean": round(float(v.mean()), 4) if v.size else None for q, v in cat.items()},
                 "near_goal_share": round(cat["accel_near_goal"].size / max(cat["accel"].size, 1), 4),
                 "goals": sum(r["goals"] for r in rows), "overlap_share": round(hit / max(total, 1), 5),
+                "standing_share": round(sum(r["standing"][0] for r in rows) / max(sum(r["standing"][1] for r in rows), 1), 4),
                 "wall_s": round(sum(r["wall_s"] for r in rows), 1)}
         print(json.dumps(line), flush=True)
         if args.out:

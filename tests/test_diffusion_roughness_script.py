@@ -71,3 +71,11 @@ def test_walker_variants_choose_the_diffusion_walker(monkeypatch, settings, walk
     with pytest.raises(Stop):
         dr.run("doorway", 2, 1.0, settings)
     assert made[0]["diffusion_walker"] == walker
+
+
+def test_standing_counts_the_slow_steps_of_whole_tracks():
+    t = np.arange(0, 4.05, 0.1)
+    walker = np.stack([t, 0 * t], -1)  # 1 m/s all along
+    stopper = np.stack([np.minimum(t, 2.0), 0 * t], -1)  # walks 2 s, then stands 2 s
+    hits, total = dr.standing(np.stack([walker, stopper], 1), 0.1)
+    assert total == 2 * 10 and hits == 5  # 0.4 s steps: 10 per person; the stopper stands from 2.0 s to 4.0 s

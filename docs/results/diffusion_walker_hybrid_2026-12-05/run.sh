@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# The measurements of docs/crowd.md, "A hybrid walker" (2026-12-05, 2-core Intel Xeon VM). Run from the repository root.
+set -euo pipefail
+D=docs/results/diffusion_walker_hybrid_2026-12-05
+export OMP_NUM_THREADS=1
+# 1. the realism part and the diffusion + kinematic reliability row with the hybrid walker, seeds 0 and 1
+#    (the social-force and ORCA walkers' files of the same command: docs/results/diffusion_walker_2026-12-05/vm_*),
+#    about 12 minutes each, both at once on two cores
+for s in 0 1; do
+  navzoo eval crowd --crowds diffusion --rows diffusion+kinematic --no-cost --seed $s --set diffusion_walker=hybrid \
+    --out $D/vm_hybrid_s$s.json > $D/vm_hybrid_s$s.log 2>&1 &
+done
+wait
+# 2. the realism part without the doorway, seed 0, each walker (about 5 minutes each)
+for w in orca hybrid sfm; do
+  navzoo eval crowd --crowds diffusion --rows "" --no-cost --seed 0 \
+    --scenes station,home,grocery,circle_crossing,square_crossing,corridor,lobby --set diffusion_walker=$w \
+    --out $D/vm_nodoor_${w}_s0.json > $D/vm_nodoor_${w}_s0.log 2>&1
+done
+# 3. per scene: goals, speeds, accelerations and the share of person-time standing, each walker, 200 s, seed 0
+for sc in lobby:15 corridor:12 home:5 doorway:13; do
+  python scripts/diffusion_roughness.py --seconds 200 --scenes $sc --out $D/standing.jsonl \
+    --variants "default;orca_walker=1;hybrid_walker=1"
+done
