@@ -22,3 +22,8 @@ for sc in lobby:15 corridor:12 home:5 doorway:13; do
   python scripts/diffusion_roughness.py --seconds 200 --scenes $sc --out $D/standing.jsonl \
     --variants "default;orca_walker=1;hybrid_walker=1"
 done
+# 4. the doorway with door turns (human_door_turns), ORCA and social-force walkers, seed 0 (about 30 s each)
+for w in orca sfm; do
+  navzoo eval crowd --crowds diffusion --rows "" --no-cost --seed 0 --scenes doorway --people 13 \
+    --set diffusion_walker=$w --set human_door_turns=true --out $D/vm_door_turns_${w}_s0.json
+done
