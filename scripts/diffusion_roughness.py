@@ -21,7 +21,9 @@ holds still to social force (``NavConfig.diffusion_walker="hybrid"``). ``pace_ra
 changes from the person's current speed toward its preferred one at A m/s². Prints, per variant, the mean
 walked speed, acceleration and jerk, the mean acceleration of the plans themselves (every plan made,
 at its 0.4 s points), goals reached, the overlap share (centres closer than 0.4 m), the standing share (0.4 s steps under
-:data:`STAND_SPEED`, whole tracks: jams and waits), and the walked
+:data:`STAND_SPEED`, whole tracks: jams and waits), the mean acceleration while walking (``accel_walking_mean``:
+both speeds of the sample at least :data:`STAND_SPEED`; ``--real`` measures the real tracks the same way), and the
+walked
 acceleration split at the goals: within :data:`GOAL_WINDOW_S` of a person's goal arrival (the turn to the next
 goal, which the recordings never show) and the rest (``accel_near_goal_mean``, ``accel_between_goals_mean``,
 ``near_goal_share``).
@@ -41,10 +43,13 @@ from navzoo.agents.crowd import CrowdPolicy
 from navzoo.agents.diffusion.crowd import ORCA_WALKER
 from navzoo.agents.orca import OrcaParams
 from navzoo.benchmark.crowd_eval import (
+    MAX_JUMP_M,
     MIN_START_SPEED,
     STEP,
     collision_share,
+    continuous_pieces,
     kinematics,
+    real_tracks,
     resample,
     track_kinematics,
     trim_still_start,
@@ -97,6 +102,38 @@ def standing(pos: np.ndarray, dt: float, step: float = STEP, speed: float = STAN
     k = max(1, int(round(step / dt)))
     sp = np.linalg.norm(np.diff(np.asarray(pos)[::k], axis=0), axis=-1) / (k * dt)
     return int((sp < speed).sum()), int(sp.size)
+
+
+def walking_accel(t: np.ndarray, xy: np.ndarray, step: float = STEP, speed: float = STAND_SPEED,
+                  trim: bool = True) -> np.ndarray:
+    """A track's accelerations while walking: resampled to ``step``, its still start trimmed (``trim``, as the
+    realism part does for simulated people), cut at jumps, and only the samples whose two speeds are both at least
+    ``speed`` (an acceleration between a standing and a moving step is a start or a stop, not walking)."""
+    res = resample(np.asarray(t, dtype=float), np.asarray(xy, dtype=float), step)
+    if trim:
+        res = trim_still_start(res, step, MIN_START_SPEED)
+    out = []
+    for piece in continuous_pieces(res, MAX_JUMP_M):
+        kin = kinematics(piece, step)
+        v, a = kin["speed"], kin["accel"]
+        out.append(a[(v[:-1] >= speed) & (v[1:] >= speed)])
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+def real_line(data_dir: str | None) -> dict:
+    """The real ETH/UCY tracks measured as the variants are: mean acceleration (as the realism part pools it), mean
+    acceleration while walking, and the standing share (0.4 s steps under :data:`STAND_SPEED`)."""
+    tracks = real_tracks(data_dir)
+    acc = track_kinematics(tracks, STEP, min_start_speed=None)["accel"]
+    walking = np.concatenate([walking_accel(t, xy, trim=False) for t, xy in tracks])
+    stand = [0, 0]
+    for t, xy in tracks:
+        for piece in continuous_pieces(resample(t, xy, STEP), MAX_JUMP_M):
+            h, n = standing(piece[:, None], STEP)
+            stand[0], stand[1] = stand[0] + h, stand[1] + n
+    return {"variant": "real", "crowd": "real ETH/UCY", "accel_mean": round(float(acc.mean()), 4),
+            "accel_walking_mean": round(float(walking.mean()), 4), "standing_share": round(stand[0] / max(stand[1], 1), 4),
+            "tracks": len(tracks)}
 
 
 def fit_histories(h: np.ndarray, deg: int) -> np.ndarray:
@@ -216,6 +253,7 @@ def run(scene: str, n: int, seconds: float, settings: dict[str, float], seed: in
             "plan_accel": plan_acc, "accel_near_goal": np.concatenate([a for a, _ in split]),
             "accel_between_goals": np.concatenate([b for _, b in split]), "goals": goals, "overlap": (hit, total),
             "standing": standing(pos, env.config.dt),
+            "accel_walking": np.concatenate([walking_accel(t, pos[:, j]) for j in range(n)]),
             "wall_s": time.time() - t0}
 
 
@@ -228,13 +266,23 @@ def main() -> None:
     ap.add_argument("--crowd", default="diffusion", choices=("diffusion", "sfm", "orca"),
                     help="the crowd model (sfm / orca: for comparison; no plans, only walker_ settings for sfm)")
     ap.add_argument("--out", default=None, help="append one JSON line per variant")
+    ap.add_argument("--real", action="store_true",
+                    help="first measure the real ETH/UCY tracks the same way (one line: accel_mean, accel_walking_mean, "
+                         "standing_share); with --variants '' only that")
+    ap.add_argument("--data", default=None, help="ETH/UCY folder for --real (default: the shared data folder)")
     args = ap.parse_args()
+    if args.real:
+        line = real_line(args.data)
+        print(json.dumps(line), flush=True)
+        if args.out:
+            with open(args.out, "a") as f:
+                f.write(json.dumps(line) + "\n")
     scenes = [(s.split(":")[0], int(s.split(":")[1])) for s in args.scenes.split(",")]
-    for text in args.variants.split(";"):
+    for text in filter(None, args.variants.split(";")):
         settings = parse_variant(text)
         rows = [run(sc, n, args.seconds, settings, args.seed, args.crowd) for sc, n in scenes]
         cat = {q: np.concatenate([r[q] for r in rows])
-               for q in ("speed", "accel", "jerk", "plan_accel", "accel_near_goal", "accel_between_goals")}
+               for q in ("speed", "accel", "jerk", "plan_accel", "accel_near_goal", "accel_between_goals", "accel_walking")}
         hit = sum(r["overlap"][0] for r in rows)
         total = sum(r["overlap"][1] for r in rows)
         line = {"variant": text.strip() or "default", "crowd": args.crowd, "scenes": args.scenes, "seconds": args.seconds,

@@ -79,3 +79,23 @@ def test_standing_counts_the_slow_steps_of_whole_tracks():
     stopper = np.stack([np.minimum(t, 2.0), 0 * t], -1)  # walks 2 s, then stands 2 s
     hits, total = dr.standing(np.stack([walker, stopper], 1), 0.1)
     assert total == 2 * 10 and hits == 5  # 0.4 s steps: 10 per person; the stopper stands from 2.0 s to 4.0 s
+
+
+def test_walking_accelerations_leave_out_stops_and_starts():
+    t = np.arange(0, 12.05, 0.1)
+    x = np.where(t < 4, t, np.where(t < 8, 4.0, 4.0 + 1.2 * (t - 8)))  # 1 m/s, stands 4 s, 1.2 m/s
+    acc = dr.walking_accel(t, np.stack([x, 0 * t], -1))
+    assert acc.size > 10 and np.abs(acc).max() < 1e-6  # only the steady walks: the stop and the start are not walking
+    everything = dr.kinematics(dr.resample(t, np.stack([x, 0 * t], -1), dr.STEP), dr.STEP)["accel"]
+    assert everything.max() > 2.0  # the stop and the start themselves are hard accelerations
+
+
+def test_the_real_tracks_are_measured_the_same_way(tmp_path):
+    folder = tmp_path / "eth_ucy"
+    folder.mkdir()
+    rows = [f"{10 * k}\t1\t{0.4 * k:.3f}\t0.0" for k in range(20)]  # frame ped x y: one person at 1 m/s
+    rows += [f"{10 * k}\t2\t3.0\t{1.0 + (0.4 * k if k < 10 else 4.0):.3f}" for k in range(20)]  # walks, then stands
+    (folder / "test_eth.txt").write_text("\n".join(rows) + "\n")
+    line = dr.real_line(str(folder))
+    assert line["tracks"] == 2 and line["accel_walking_mean"] == pytest.approx(0.0, abs=1e-6)
+    assert 0.2 < line["standing_share"] < 0.3  # 9 of the 38 steps of 0.4 s stand

@@ -279,6 +279,28 @@ def _summary(kin: dict[str, np.ndarray], real: dict[str, np.ndarray] | None) -> 
 
 
 # ---------------------------------------------------------------------------------------- real data
+def file_tracks(tr: Any) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The tracks of one recording (:func:`navzoo.forecast.data.read_tracks`) as ``(t (T,), xy (T, 2))`` pieces:
+    one per person and run of consecutive annotated frames, times from 0 at the piece's first frame."""
+    order = np.lexsort((tr.frame, tr.ped))
+    ped, frame, xy = tr.ped[order], tr.frame[order], tr.xy[order]
+    cuts = np.flatnonzero((np.diff(ped) != 0) | (np.diff(frame) != tr.frame_step)) + 1
+    return [((f_piece - f_piece[0]) / tr.frame_step * tr.dt, xy_piece)
+            for f_piece, xy_piece in zip(np.split(frame, cuts), np.split(xy, cuts), strict=True)]
+
+
+def real_tracks(data_dir: str | Path | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Every track piece (:func:`file_tracks`) of the ETH/UCY recordings that :func:`real_data` measures."""
+    from navzoo.forecast import data as fdata
+
+    folder = Path(data_dir) if data_dir is not None else fdata.default_data_dir()
+    found = fdata.discover(folder)
+    files = found["all"] or {**found["train"], **found["val"]}
+    if not files:
+        raise FileNotFoundError(f"no ETH/UCY files in {folder}")
+    return [piece for _, path in sorted(files.items()) for piece in file_tracks(fdata.read_tracks(path))]
+
+
 def real_data(data_dir: str | Path | None = None, step: float = STEP, max_jump: float = MAX_JUMP_M,
               thresholds: dict[str, float] | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """Kinematics and collision counts of the real ETH/UCY tracks (see the module doc).
@@ -299,12 +321,8 @@ def real_data(data_dir: str | Path | None = None, step: float = STEP, max_jump: 
     per_file = []
     for scene, path in sorted(files.items()):
         tr = fdata.read_tracks(path)
-        order = np.lexsort((tr.frame, tr.ped))
-        ped, frame, xy = tr.ped[order], tr.frame[order], tr.xy[order]
-        cuts = np.flatnonzero((np.diff(ped) != 0) | (np.diff(frame) != tr.frame_step)) + 1
         n_before = len(tracks)
-        for f_piece, xy_piece in zip(np.split(frame, cuts), np.split(xy, cuts), strict=True):
-            tracks.append(((f_piece - f_piece[0]) / tr.frame_step * tr.dt, xy_piece))
+        tracks.extend(file_tracks(tr))
         # Collisions frame by frame (rows are sorted by (frame, ped)).
         starts = np.flatnonzero(np.r_[True, np.diff(tr.frame) != 0])
         file_counts = {}
