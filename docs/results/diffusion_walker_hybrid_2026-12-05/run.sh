@@ -17,7 +17,9 @@ for w in orca hybrid sfm; do
     --scenes station,home,grocery,circle_crossing,square_crossing,corridor,lobby --set diffusion_walker=$w \
     --out $D/vm_nodoor_${w}_s0.json > $D/vm_nodoor_${w}_s0.log 2>&1
 done
-# 3. per scene: goals, speeds, accelerations and the share of person-time standing, each walker, 200 s, seed 0
+# 3. per scene: goals, speeds, accelerations (also while walking) and the share of person-time standing, each walker,
+#    200 s, seed 0; first the real ETH/UCY tracks measured the same way
+python scripts/diffusion_roughness.py --real --variants "" --out $D/standing.jsonl
 for sc in lobby:15 corridor:12 home:5 doorway:13; do
   python scripts/diffusion_roughness.py --seconds 200 --scenes $sc --out $D/standing.jsonl \
     --variants "default;orca_walker=1;hybrid_walker=1"
