@@ -21,8 +21,8 @@ holds still to social force (``NavConfig.diffusion_walker="hybrid"``). ``pace_ra
 changes from the person's current speed toward its preferred one at A m/s². Prints, per variant, the mean
 walked speed, acceleration and jerk, the mean acceleration of the plans themselves (every plan made,
 at its 0.4 s points), goals reached, the overlap share (centres closer than 0.4 m), the standing share (0.4 s steps under
-:data:`STAND_SPEED`, whole tracks: jams and waits), the mean acceleration while walking (``accel_walking_mean``:
-both speeds of the sample at least :data:`STAND_SPEED`; ``--real`` measures the real tracks the same way), and the
+:data:`~navzoo.benchmark.crowd_eval.STAND_SPEED`, whole tracks: jams and waits), the mean acceleration while walking (``accel_walking_mean``:
+both speeds of the sample at least that speed; ``--real`` measures the real tracks the same way), and the
 walked
 acceleration split at the goals: within :data:`GOAL_WINDOW_S` of a person's goal arrival (the turn to the next
 goal, which the recordings never show) and the rest (``accel_near_goal_mean``, ``accel_between_goals_mean``,
@@ -43,16 +43,16 @@ from navzoo.agents.crowd import CrowdPolicy
 from navzoo.agents.diffusion.crowd import ORCA_WALKER
 from navzoo.agents.orca import OrcaParams
 from navzoo.benchmark.crowd_eval import (
-    MAX_JUMP_M,
     MIN_START_SPEED,
     STEP,
     collision_share,
-    continuous_pieces,
     kinematics,
-    real_tracks,
+    real_data,
     resample,
+    standing,
     track_kinematics,
     trim_still_start,
+    walking_accel,
 )
 from navzoo.envs.nav_env import NavEnv
 from navzoo.envs.wrappers import FrozenAgents
@@ -91,49 +91,14 @@ def split_at_goals(t: np.ndarray, xy: np.ndarray, arrivals: np.ndarray, step: fl
     return acc[near], acc[~near]
 
 
-#: m/s: below this speed over a 0.4 s step a person stands (``standing_share``: jams, waits, turns on the spot).
-STAND_SPEED = 0.1
-
-
-def standing(pos: np.ndarray, dt: float, step: float = STEP, speed: float = STAND_SPEED) -> tuple[int, int]:
-    """Person-steps standing in ``pos`` ((T, n, 2) positions every ``dt`` s, whole tracks, no start trimmed): the
-    number of ``step``-long intervals (positions subsampled every ``step`` s) covered at under ``speed``, and the
-    number of intervals."""
-    k = max(1, int(round(step / dt)))
-    sp = np.linalg.norm(np.diff(np.asarray(pos)[::k], axis=0), axis=-1) / (k * dt)
-    return int((sp < speed).sum()), int(sp.size)
-
-
-def walking_accel(t: np.ndarray, xy: np.ndarray, step: float = STEP, speed: float = STAND_SPEED,
-                  trim: bool = True) -> np.ndarray:
-    """A track's accelerations while walking: resampled to ``step``, its still start trimmed (``trim``, as the
-    realism part does for simulated people), cut at jumps, and only the samples whose two speeds are both at least
-    ``speed`` (an acceleration between a standing and a moving step is a start or a stop, not walking)."""
-    res = resample(np.asarray(t, dtype=float), np.asarray(xy, dtype=float), step)
-    if trim:
-        res = trim_still_start(res, step, MIN_START_SPEED)
-    out = []
-    for piece in continuous_pieces(res, MAX_JUMP_M):
-        kin = kinematics(piece, step)
-        v, a = kin["speed"], kin["accel"]
-        out.append(a[(v[:-1] >= speed) & (v[1:] >= speed)])
-    return np.concatenate(out) if out else np.zeros(0)
-
-
 def real_line(data_dir: str | None) -> dict:
-    """The real ETH/UCY tracks measured as the variants are: mean acceleration (as the realism part pools it), mean
-    acceleration while walking, and the standing share (0.4 s steps under :data:`STAND_SPEED`)."""
-    tracks = real_tracks(data_dir)
-    acc = track_kinematics(tracks, STEP, min_start_speed=None)["accel"]
-    walking = np.concatenate([walking_accel(t, xy, trim=False) for t, xy in tracks])
-    stand = [0, 0]
-    for t, xy in tracks:
-        for piece in continuous_pieces(resample(t, xy, STEP), MAX_JUMP_M):
-            h, n = standing(piece[:, None], STEP)
-            stand[0], stand[1] = stand[0] + h, stand[1] + n
-    return {"variant": "real", "crowd": "real ETH/UCY", "accel_mean": round(float(acc.mean()), 4),
-            "accel_walking_mean": round(float(walking.mean()), 4), "standing_share": round(stand[0] / max(stand[1], 1), 4),
-            "tracks": len(tracks)}
+    """The real ETH/UCY tracks measured as the variants are (:func:`navzoo.benchmark.crowd_eval.real_data`): mean
+    acceleration (as the realism part pools it), mean acceleration while walking, and the standing share (0.4 s
+    steps under :data:`~navzoo.benchmark.crowd_eval.STAND_SPEED`)."""
+    kin, summary = real_data(data_dir)
+    return {"variant": "real", "crowd": "real ETH/UCY", "accel_mean": round(summary["accel_mean"], 4),
+            "accel_walking_mean": round(summary["accel_walking_mean"], 4),
+            "standing_share": round(summary["standing_share"], 4), "tracks": sum(f["tracks"] for f in summary["files"])}
 
 
 def fit_histories(h: np.ndarray, deg: int) -> np.ndarray:

@@ -220,6 +220,9 @@ def test_cli_tiny_run_prints_json(capsys, tmp_path):
             assert {f"{q}_mean", f"{q}_w1", f"{q}_js"} <= set(row)
         assert 0.0 <= row["collision_rate"] <= row["collision_rate_env_radius"] <= 1.0
         assert 0.3 < row["speed_mean"] < 2.0
+        assert 0.0 <= row["standing_share"] <= 1.0 and row["accel_walking_mean"] >= 0.0
+        assert all(0.0 <= sc["standing_share"] <= 1.0 for sc in row["scenes"])
+    assert 0.0 < res["realism"]["real"]["standing_share"] < 1.0 and res["realism"]["real"]["accel_walking_mean"] > 0
     assert set(res["reliability"]) == {"sfm+kinematic", "diffusion+kinematic"}
     for row in res["reliability"].values():
         assert {"success_rate", "fall_rate", "map_collision_rate", "agent_collision_rate", "path_error_m",
@@ -228,7 +231,7 @@ def test_cli_tiny_run_prints_json(capsys, tmp_path):
     assert res["reliability"]["sfm+kinematic"]["path_error_m"] is None
     assert res["reliability"]["diffusion+kinematic"]["path_error_m"] >= 0.0
     md = ce.markdown(res)
-    assert "paper sfm+amp | 74.24" in md and "real (ETH/UCY)" in md
+    assert "paper sfm+amp | 74.24" in md and "real (ETH/UCY)" in md and "| standing share | accel while walking |" in md
     assert main(["eval", "crowd", "--crowds", "nope", "--no-cost"]) == 2
 
 
@@ -352,3 +355,21 @@ def test_set_reaches_the_realism_and_reliability_runs_and_is_checked_first(monke
                        (["crowd_wall_strength"], "KEY=VALUE")):
         with pytest.raises(SystemExit, match=msg):
             ce.main(["--scenes", "lobby", "--no-cost", *[x for i in items for x in ("--set", i)]])
+
+
+def test_standing_and_walking_accelerations_of_hand_made_tracks():
+    t = np.arange(0, 12.05, 0.1)
+    x = np.where(t < 4, t, np.where(t < 8, 4.0, 4.0 + 1.2 * (t - 8)))  # 1 m/s, stands 4 s, 1.2 m/s
+    xy = np.stack([x, 0 * t], -1)
+    walking = ce.walking_accel(t, xy)
+    assert walking.size > 10 and np.abs(walking).max() < 1e-6  # the stop and the start are not walking
+    assert ce.kinematics(ce.resample(t, xy, ce.STEP), ce.STEP)["accel"].max() > 2.0
+    hits, total = ce.standing(xy[:, None], 0.1)
+    assert total == 30 and hits == 10  # 0.4 s steps: the 4 s stand
+
+
+@pytest.mark.skipif(not fdata.default_data_dir().is_dir(), reason="ETH/UCY data not available")
+def test_real_people_stand_some_of_the_time_and_accelerate_mostly_walking():
+    kin, summary = ce.real_data()
+    assert 0.02 < summary["standing_share"] < 0.5
+    assert 0.5 * summary["accel_mean"] < summary["accel_walking_mean"] < 2.0 * summary["accel_mean"]

@@ -170,6 +170,35 @@ def kinematics(xy: np.ndarray, step: float = STEP) -> dict[str, np.ndarray]:
     return out
 
 
+#: m/s: below this speed over a ``STEP``-long interval a person stands (:func:`standing`).
+STAND_SPEED = 0.1
+
+
+def standing(pos: np.ndarray, dt: float, step: float = STEP, speed: float = STAND_SPEED) -> tuple[int, int]:
+    """Person-steps standing in ``pos`` ((T, n, 2) positions every ``dt`` s, whole tracks, no start trimmed): the
+    number of ``step``-long intervals (positions subsampled every ``step`` s) covered at under ``speed``, and the
+    number of intervals. Standing people (waiting, queueing, jammed) add near-zero accelerations."""
+    k = max(1, int(round(step / dt)))
+    sp = np.linalg.norm(np.diff(np.asarray(pos)[::k], axis=0), axis=-1) / (k * dt)
+    return int((sp < speed).sum()), int(sp.size)
+
+
+def walking_accel(t: np.ndarray, xy: np.ndarray, step: float = STEP, speed: float = STAND_SPEED,
+                  trim: bool = True, max_jump: float = MAX_JUMP_M) -> np.ndarray:
+    """A track's accelerations while walking: resampled to ``step``, its still start trimmed (``trim``, as for
+    simulated people), cut at jumps, and only the samples whose two speeds are both at least ``speed`` (an
+    acceleration between a standing and a moving step is a start or a stop, not walking)."""
+    res = resample(np.asarray(t, dtype=float), np.asarray(xy, dtype=float), step)
+    if trim:
+        res = trim_still_start(res, step, MIN_START_SPEED)
+    out = []
+    for piece in continuous_pieces(res, max_jump):
+        kin = kinematics(piece, step)
+        v, a = kin["speed"], kin["accel"]
+        out.append(a[(v[:-1] >= speed) & (v[1:] >= speed)])
+    return np.concatenate(out) if out else np.zeros(0)
+
+
 def track_kinematics(tracks: Sequence[tuple[np.ndarray, np.ndarray]], step: float = STEP,
                      max_jump: float = MAX_JUMP_M, min_start_speed: float | None = MIN_START_SPEED
                      ) -> dict[str, np.ndarray]:
@@ -338,6 +367,14 @@ def real_data(data_dir: str | Path | None = None, step: float = STEP, max_jump: 
                          **{f"collision_rate{_suffix(k)}": v for k, v in file_counts.items()}})
     kin = track_kinematics(tracks, step, max_jump, min_start_speed=None)
     summary = _summary(kin, None)
+    walking = np.concatenate([walking_accel(t, xy, step, trim=False, max_jump=max_jump) for t, xy in tracks])
+    summary["accel_walking_mean"] = float(walking.mean()) if walking.size else float("nan")
+    stand = [0, 0]
+    for t, xy in tracks:
+        for piece in continuous_pieces(resample(t, xy, step), max_jump):
+            h, n = standing(piece[:, None], step, step)
+            stand[0], stand[1] = stand[0] + h, stand[1] + n
+    summary["standing_share"] = stand[0] / max(stand[1], 1)
     for name, (hit, total) in counts.items():
         summary[f"collision_rate{_suffix(name)}"] = hit / max(total, 1)
     summary["person_steps"] = counts[next(iter(counts))][1]
@@ -415,12 +452,14 @@ def _crowd_scene(crowd: str, scene: str, n: int, seconds: float, seed: int, dt: 
     t = np.arange(len(pos)) * dt
     kin = track_kinematics([(t, pos[:, j]) for j in range(n)], step, max_jump, min_start_speed)
     counts = {name: collision_share(pos, thr) for name, thr in _thresholds(2 * float(radius.max()), overlap_m).items()}
+    walking = np.concatenate([walking_accel(t, pos[:, j], step, max_jump=max_jump) for j in range(n)] or [np.zeros(0)])
     wall = time.time() - t0
     line = (f"crowd realism {crowd} {scene} ({n} people, {seconds:.0f} s): mean speed "
             f"{kin['speed'].mean() if kin['speed'].size else float('nan'):.2f} m/s, collision share "
             f"{counts['overlap'][0] / max(counts['overlap'][1], 1):.4f}, goals {goals}, {wall:.0f} s")
     print(line, file=sys.stderr, flush=True)
     return {"crowd": crowd, "scene": scene, "pedestrians": n, "kin": kin, "counts": counts, "goals": goals,
+            "standing": standing(pos, dt, step), "accel_walking": walking,
             "env_radius_threshold_m": 2 * float(radius.max()), "wall_s": round(wall, 1)}
 
 
@@ -455,9 +494,13 @@ def realism(crowds: Sequence[str] = DEFAULT_CROWDS, scenes: Sequence[str] = pede
         summary["person_steps"] = sum(r["counts"]["overlap"][1] for r in mine)
         summary["env_radius_threshold_m"] = mine[0]["env_radius_threshold_m"]
         summary["goals_reached"] = sum(r["goals"] for r in mine)
+        walking = np.concatenate([r["accel_walking"] for r in mine])
+        summary["accel_walking_mean"] = float(walking.mean()) if walking.size else float("nan")
+        summary["standing_share"] = sum(r["standing"][0] for r in mine) / max(sum(r["standing"][1] for r in mine), 1)
         summary["scenes"] = [{"scene": r["scene"], "pedestrians": r["pedestrians"], "goals": r["goals"],
                               "speed_mean": float(r["kin"]["speed"].mean()) if r["kin"]["speed"].size else None,
                               "collision_rate": r["counts"]["overlap"][0] / max(r["counts"]["overlap"][1], 1),
+                              "standing_share": r["standing"][0] / max(r["standing"][1], 1),
                               "wall_s": r["wall_s"]} for r in mine]
         out[c] = summary
     out["real"] = real_summary
@@ -735,7 +778,8 @@ def markdown(result: dict[str, Any]) -> str:
     real = result.get("realism", {})
     if real:
         lines += ["| realism | speed mean (m/s) | W1 | JS | accel mean (m/s²) | W1 | JS | jerk mean (m/s³) | W1 | JS "
-                  "| collision rate (<0.4 m) | collision rate (< 2 radii) |", "|---" * 12 + "|"]
+                  "| collision rate (<0.4 m) | collision rate (< 2 radii) | standing share | accel while walking |",
+                  "|---" * 14 + "|"]
         for name, row in real.items():
             if name in ("settings",):
                 continue
@@ -744,7 +788,8 @@ def markdown(result: dict[str, Any]) -> str:
                 cells += [f(row.get(f"{q}_mean"), 2), f(row.get(f"{q}_w1")), f(row.get(f"{q}_js"))]
             label = "real (ETH/UCY)" if name == "real" else name
             lines.append(f"| {label} | " + " | ".join(cells) + f" | {f(row.get('collision_rate'), 4)} | "
-                         f"{f(row.get('collision_rate_env_radius'), 4)} |")
+                         f"{f(row.get('collision_rate_env_radius'), 4)} | {f(row.get('standing_share'))} | "
+                         f"{f(row.get('accel_walking_mean'), 2)} |")
         s = real.get("settings", {})
         if s:
             lines.append("")
