@@ -448,6 +448,9 @@ def test_orca_walker_carries_the_bodies_along_their_plans(model_dir, monkeypatch
     own = OrcaParams(time_horizon=3.0)
     walk("orca", CrowdPolicy("diffusion", orca_params=own))
     assert calls and all(p == own for p in calls)  # parameters given to the policy win
+    calls.clear()
+    moved, _ = walk("hybrid", CrowdPolicy("diffusion"))  # the hybrid walker: the same ORCA, with a robot among them
+    assert calls and all(p == ORCA_WALKER for p in calls) and moved.min() > 0.3
 
 
 def test_hybrid_walker_hands_the_people_orca_holds_still_to_social_force(model_dir, monkeypatch):
