@@ -30,9 +30,11 @@ for w in orca sfm; do
     --set diffusion_walker=$w --set human_door_turns=true --out $D/vm_door_turns_${w}_s0.json
 done
 # 5. the realism part of every crowd (default walker) and of the diffusion crowd with the ORCA and hybrid walkers,
-#    seed 0, with the standing share and the accelerations while walking
-navzoo eval crowd --rows "" --no-cost --seed 0 --workers 2 --out $D/vm_realism_all_crowds_s0.json
-for w in orca hybrid; do
-  navzoo eval crowd --crowds diffusion --rows "" --no-cost --seed 0 --workers 2 --set diffusion_walker=$w \
-    --out $D/vm_realism_${w}_walker_s0.json
+#    seeds 0 and 1, with the standing share and the accelerations while walking (about 14 minutes per seed)
+for s in 0 1; do
+  navzoo eval crowd --rows "" --no-cost --seed $s --workers 2 --out $D/vm_realism_all_crowds_s$s.json
+  for w in orca hybrid; do
+    navzoo eval crowd --crowds diffusion --rows "" --no-cost --seed $s --workers 2 --set diffusion_walker=$w \
+      --out $D/vm_realism_${w}_walker_s$s.json
+  done
 done
