@@ -115,7 +115,7 @@ class CrowdPolicy:
             return v
         from navzoo.agents.diffusion.crowd import StallSwitch
 
-        if getattr(self, "_switch", None) is None or self._switch.n != h.size:
+        if self._switch is None or self._switch.n != h.size:
             self._switch = StallSwitch(h.size)
         use = self._switch.update(env.sim_time, env.config.dt, v, pref)
         if use.any():

@@ -318,18 +318,6 @@ def file_tracks(tr: Any) -> list[tuple[np.ndarray, np.ndarray]]:
             for f_piece, xy_piece in zip(np.split(frame, cuts), np.split(xy, cuts), strict=True)]
 
 
-def real_tracks(data_dir: str | Path | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Every track piece (:func:`file_tracks`) of the ETH/UCY recordings that :func:`real_data` measures."""
-    from navzoo.forecast import data as fdata
-
-    folder = Path(data_dir) if data_dir is not None else fdata.default_data_dir()
-    found = fdata.discover(folder)
-    files = found["all"] or {**found["train"], **found["val"]}
-    if not files:
-        raise FileNotFoundError(f"no ETH/UCY files in {folder}")
-    return [piece for _, path in sorted(files.items()) for piece in file_tracks(fdata.read_tracks(path))]
-
-
 def real_data(data_dir: str | Path | None = None, step: float = STEP, max_jump: float = MAX_JUMP_M,
               thresholds: dict[str, float] | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """Kinematics and collision counts of the real ETH/UCY tracks (see the module doc).
@@ -369,12 +357,8 @@ def real_data(data_dir: str | Path | None = None, step: float = STEP, max_jump: 
     summary = _summary(kin, None)
     walking = np.concatenate([walking_accel(t, xy, step, trim=False, max_jump=max_jump) for t, xy in tracks])
     summary["accel_walking_mean"] = float(walking.mean()) if walking.size else float("nan")
-    stand = [0, 0]
-    for t, xy in tracks:
-        for piece in continuous_pieces(resample(t, xy, step), max_jump):
-            h, n = standing(piece[:, None], step, step)
-            stand[0], stand[1] = stand[0] + h, stand[1] + n
-    summary["standing_share"] = stand[0] / max(stand[1], 1)
+    # the speeds are those of every step-long interval of the whole tracks (no start trimmed), as standing() counts
+    summary["standing_share"] = float(np.mean(kin["speed"] < STAND_SPEED)) if kin["speed"].size else float("nan")
     for name, (hit, total) in counts.items():
         summary[f"collision_rate{_suffix(name)}"] = hit / max(total, 1)
     summary["person_steps"] = counts[next(iter(counts))][1]
