@@ -115,6 +115,25 @@ DIFFUSION_LOOKAHEAD_S = 0.4
 # 0.004, agent contacts 0.170 / 0.102 / 0.060 / 0.028 and timeouts 0.094 / 0.117 / 0.146 / 0.158; on two
 # seeds not used to choose (4, 5) 1.0 against 1.3: 0.834 / 0.808 against 0.715 / 0.771.
 DIFFUSION_SPEED_CAP = 1.0
+# Plans are sampled from each person's recent past, so a body that has stopped (a yield, a push, a jam at a door)
+# gets slow plans; its target then creeps (the rollout toward a plan that walks 0.2 m/s, slowed further by the
+# jamb it stands next to) and the controller does not walk toward a target that slow, least of all one behind it
+# (a lone body follows a straight target at 0.3 m/s only 1 m in 11 s when the target starts 135 degrees off its
+# heading, and at 0.6 m/s walks off within 2.5 s whatever the bearing: docs/pedestrians.md, "Slow targets").
+# Bodies stood this way for tens of seconds beside door jambs with the door free. With STALL_WARP_S > 0, a person
+# whose body has stood (planar speed under STALL_SPEED) for that long gets a rollout that walks its plan's path at
+# no less than STALL_PACE x its preferred speed (the plan's time runs faster, by at most STALL_MAX_WARP; the
+# plan's own pace is measured over its next STALL_PLAN_S), where the plan moves at all (STALL_MIN_PLAN_SPEED:
+# plans slower than that are a wait, and stay one). 0 = off (docs/crowd.md, "Bodies that stand at doors").
+STALL_WARP_S = 0.0
+STALL_SPEED = 0.15  # m/s
+STALL_PACE = 0.6
+STALL_MIN_PLAN_SPEED = 0.05  # m/s
+STALL_PLAN_S = 2.0  # s
+STALL_MAX_WARP = 4.0
+# Not within STALL_NARROW_REACH (m) of a stretch of the person's A* path too narrow for the full wall margin (the
+# graded wall margin's narrow points: doors under about 1.0 m); 0 = everywhere.
+STALL_NARROW_REACH = 0.0
 
 
 # A physics body is pushed and swerves: it can pass a waypoint of its A* path farther than the
@@ -248,6 +267,19 @@ def limit_accel(v_prev: np.ndarray, v_new: np.ndarray, max_dv: float) -> np.ndar
     out = v_new.copy()
     out[fast] *= (cap[fast] / sp_new[fast])[:, None]
     return out
+
+
+def stall_warp(plan_speed: np.ndarray, v_pref: np.ndarray, pace: float | None = None,
+               min_speed: float | None = None, max_warp: float | None = None) -> np.ndarray:
+    """How much faster than their plans' own pace stalled people walk their plans (STALL_WARP_S): the factor that
+    brings a plan's pace ``plan_speed`` (m/s) up to ``pace`` x ``v_pref``, between 1 and ``max_warp``; 1 where the
+    plan is slower than ``min_speed`` (a wait) or already as fast. Defaults: the module's STALL_* constants."""
+    pace = STALL_PACE if pace is None else pace
+    min_speed = STALL_MIN_PLAN_SPEED if min_speed is None else min_speed
+    max_warp = STALL_MAX_WARP if max_warp is None else max_warp
+    plan_speed = np.asarray(plan_speed, dtype=float)
+    want = pace * np.asarray(v_pref, dtype=float) / np.maximum(plan_speed, 1e-9)
+    return np.where(plan_speed > min_speed, np.clip(want, 1.0, max_warp), 1.0)
 
 
 def narrow_points(path: np.ndarray, clearance, below: float, spacing: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
@@ -440,6 +472,7 @@ class AmpHumans:
         self.k_prog = np.zeros(self.n, dtype=int)  # index of each person's current target point
         self.lag_all = env.diffusion is not None or LAG_LIMIT_RULES  # every target held to LAG_LIMIT_S (progress_index)
         self.fallen = np.zeros(self.n, dtype=bool)
+        self.still_s = np.zeros(self.n)  # how long each body has stood (speed < STALL_SPEED), for STALL_WARP_S
         self.stance = np.zeros(self.n)  # running mean of foot_split (STANCE_TAU_S), updated by task_reward
         wall = env.config.amp_wall_strength
         self.a_wall = float(SFM_A_WALL if wall is None else wall)  # A_wall of the target rollouts
@@ -469,6 +502,7 @@ class AmpHumans:
         self.bodies.set_state(self.bodies.standing_state(pos, yaw))
         self.t = 0
         self.fallen[:] = False
+        self.still_s[:] = 0.0
         self.stance[:] = 0.0  # the standing start has its feet side by side
         self.extra_replan = -1
         self._goals_seen[:] = -1  # the first plan after a reset starts every person's first trip
@@ -531,6 +565,17 @@ class AmpHumans:
             # social force rolls them out from the bodies, so bodies keep their distance.
             diffusion.plan_now(env)
             cap = np.minimum(vmax, v_pref * DIFFUSION_SPEED_CAP)[:, None]
+            stalled = np.flatnonzero((self.still_s >= STALL_WARP_S) & (v_pref > 0.0)) if STALL_WARP_S > 0 \
+                else np.zeros(0, dtype=int)
+            if stalled.size:  # how much faster than its own pace each stalled person walks its plan
+                t0 = env.sim_time
+                plan_speed = np.linalg.norm(diffusion._plans_at(t0 + STALL_PLAN_S)[stalled, 0]
+                                            - diffusion._plans_at(t0)[stalled, 0], axis=1) / STALL_PLAN_S
+                warp = stall_warp(plan_speed, v_pref[stalled])
+                if STALL_NARROW_REACH > 0 and narrow is not None:  # not where the path passes a narrow door
+                    near = np.array([len(narrow[j][0]) > 0 and bool(
+                        (np.linalg.norm(narrow[j][0] - pos[j], axis=1) < STALL_NARROW_REACH).any()) for j in stalled])
+                    warp = np.where(near, 1.0, warp)
         out = np.empty((self.n, steps + 1, 2))
         out[:, 0] = pos
         prev_vel = vel
@@ -542,6 +587,11 @@ class AmpHumans:
                 speed = np.linalg.norm(pref, axis=1, keepdims=True)
                 pref = np.where(speed > cap, pref / np.maximum(speed, 1e-9) * cap, pref)
                 pref[v_pref == 0.0] = 0.0
+                if stalled.size:  # bodies that stand: along the plan's path at STALL_PACE x v_pref or more
+                    ahead = diffusion._plans_at(env.sim_time + warp * (k * PLAN_DT + look))[stalled, np.arange(stalled.size)]
+                    fast = (ahead - pos[stalled]) / look
+                    speed = np.linalg.norm(fast, axis=1, keepdims=True)
+                    pref[stalled] = np.where(speed > cap[stalled], fast / np.maximum(speed, 1e-9) * cap[stalled], fast)
             else:
                 for j in range(self.n):  # advance along the A* path, as the env does for physics pedestrians
                     wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD,
@@ -617,9 +667,14 @@ class AmpHumans:
         self.t += 1
         k_time = self.t - self.plan_t
         held = self.lag_all | (START_LAG & self.starting)  # whose target waits for the body
-        if held.any():
-            lead = progress_index(self.k_prog, k_time, self.paths, self.planar()[0], int(round(LAG_LIMIT_S * CONTROL_HZ)))
-            k_time = np.where(held, lead, k_time)
+        if held.any() or STALL_WARP_S > 0:
+            pos, _, vel, _ = self.planar()
+            if STALL_WARP_S > 0:
+                speed = np.linalg.norm(vel, axis=1)
+                self.still_s = np.where(speed < STALL_SPEED, self.still_s + 1.0 / CONTROL_HZ, 0.0)
+            if held.any():
+                lead = progress_index(self.k_prog, k_time, self.paths, pos, int(round(LAG_LIMIT_S * CONTROL_HZ)))
+                k_time = np.where(held, lead, k_time)
         self.k_prog = k_time
 
     def after_step(self, replan: bool) -> None:

@@ -1,0 +1,142 @@
+"""Stalled physics pedestrians walk their diffusion plans faster (amp_humans.STALL_WARP_S), and the two probe
+scripts behind docs/crowd.md "Bodies that stand at doors"."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from navzoo.envs import amp_humans
+from navzoo.envs.amp_humans import stall_warp
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _script(name: str):
+    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_stall_warp_brings_a_slow_plan_up_to_the_pace_floor():
+    v_pref = np.array([1.2, 1.2, 1.2, 1.2, 1.0])
+    plan = np.array([0.24, 0.03, 1.0, 0.09, 0.0])
+    w = stall_warp(plan, v_pref, pace=0.6, min_speed=0.05, max_warp=4.0)
+    assert w[0] == pytest.approx(3.0)  # 0.24 m/s x 3 = 0.72 = 0.6 x 1.2
+    assert w[1] == 1.0 and w[4] == 1.0  # a plan that stands is a wait: it stays one
+    assert w[2] == 1.0  # already faster than the floor: unchanged, never slowed
+    assert w[3] == pytest.approx(4.0)  # at most max_warp
+    assert (stall_warp(plan, v_pref) == w).all()  # the module's defaults are these
+
+
+def _diffusion_env():
+    from navzoo.envs.nav_env import NavEnv
+
+    env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=2, human_model="amp", crowd_model="diffusion",
+                 dt=1 / 30, time_limit=10.0)
+    env.reset(seed=0)
+    return env
+
+
+def test_stall_warp_is_off_by_default_and_counts_standing_time(monkeypatch):
+    assert amp_humans.STALL_WARP_S == 0.0
+    env = _diffusion_env()
+    amp = env.amp
+    zero = {a: np.zeros(env.action_space(a).shape, dtype=np.float32) for a in env.agents}
+    env.step(zero)
+    assert (amp.still_s == 0).all()  # not counted while the option is off
+    monkeypatch.setattr(amp_humans, "STALL_WARP_S", 1.0)
+    real = amp.planar
+    speeds = iter([0.0] * 12 + [0.5] + [0.0] * 3)  # the second body stands still, then walks, then stands again
+
+    def planar():
+        p, h, v, w = real()
+        v[:] = 0.0
+        v[1, 0] = next(speeds)
+        return p, h, v, w
+
+    monkeypatch.setattr(amp, "planar", planar)
+    for _ in range(16):
+        amp.control_step(lambda: None)
+    assert amp.still_s[0] == pytest.approx(16 / 30) and amp.still_s[1] == pytest.approx(3 / 30)
+    monkeypatch.setattr(amp, "planar", real)
+    env.reset(seed=0)
+    assert (env.amp.still_s == 0).all()
+    env.close()
+
+
+def test_a_stalled_body_gets_a_target_that_walks_its_slow_plan_faster(monkeypatch):
+    env = _diffusion_env()
+    amp, crowd = env.amp, env.diffusion
+    crowd.plan_now(env)
+    pos = amp.planar()[0]
+    goal_dir = env.goal[env.n_robots:] - pos
+    goal_dir /= np.linalg.norm(goal_dir, axis=1, keepdims=True)
+    # slow plans: 0.2 m/s from each body toward its goal, for every later replan of this test too
+    times = np.arange(crowd.plan.shape[1]) * 0.4
+
+    def slow_plan(env_, who=None):
+        crowd.plan = pos[:, None] + 0.2 * times[None, :, None] * goal_dir[:, None]
+        crowd.plan_t0 = np.full(2, env_.sim_time)
+        return crowd.plan
+
+    monkeypatch.setattr(crowd, "plan_now", slow_plan)
+    reach = {}
+    for on in (False, True):
+        monkeypatch.setattr(amp_humans, "STALL_WARP_S", 1.0 if on else 0.0)
+        amp.still_s[:] = 2.0  # both bodies have stood for 2 s (counted only while the option is on)
+        amp.plan_all()
+        reach[on] = np.linalg.norm(amp.paths[:, 60] - pos, axis=1)  # where the target is 2 s into the plan
+    assert (reach[False] < 0.55).all()  # about the plan's 0.4 m
+    assert (reach[True] > 1.5 * reach[False]).all()  # at no less than 0.6 x the preferred speed
+    assert (reach[True] <= env.v_pref[env.n_robots:] * 2.0 + 0.05).all()
+    env.close()
+
+
+def test_standing_shares_split_by_bearing_and_nearest_person():
+    probe = _script("amp_standing_probe")
+    speed = np.array([[0.0, 1.0], [0.05, 0.0], [0.1, 0.0], [1.0, 0.0]])
+    bearing = np.array([[3.0, 0.0], [1.0, 0.2], [0.1, 0.0], [0.0, 0.0]])
+    lead = np.full((4, 2), 0.5)
+    nearest = np.array([[0.5, 3.0], [1.2, 3.0], [2.0, 3.0], [0.5, 3.0]])
+    active = np.ones((4, 2), dtype=bool)
+    active[3, 1] = False  # arrived: not counted
+    out = probe.standing_shares(speed, bearing, lead, nearest, active)
+    assert out["person_steps"] == 7
+    assert out["still"] == pytest.approx(5 / 7)
+    assert out["still_behind"] == pytest.approx(1 / 7) and out["still_side"] == pytest.approx(1 / 7)
+    assert out["still_ahead"] == pytest.approx(3 / 7)
+    band = {b["from_m"]: b for b in out["still_by_nearest"]}
+    assert band[0.0]["time_share"] == pytest.approx(2 / 7) and band[0.0]["still"] == pytest.approx(0.5)
+    assert band[2.5]["still"] == pytest.approx(2 / 3)
+    with pytest.raises(ValueError, match="no person-time"):
+        probe.standing_shares(speed, bearing, lead, nearest, np.zeros((4, 2), dtype=bool))
+
+
+def test_standing_probe_refuses_unknown_constants():
+    probe = _script("amp_standing_probe")
+    with pytest.raises(SystemExit, match="upper-case constant"):
+        probe.parse_const(["NOT_A_CONSTANT=1"])
+    with pytest.raises(SystemExit, match="not a number"):
+        probe.parse_const(["STALL_WARP_S=soon"])
+    assert probe.parse_const(["STALL_WARP_S=1", "GRADED_WALL_MARGIN=0"]) == {"STALL_WARP_S": 1.0,
+                                                                             "GRADED_WALL_MARGIN": False}
+
+
+def test_slow_target_probe_writes_its_rows(tmp_path):
+    probe = _script("amp_slow_target_probe")
+    out = tmp_path / "slow.json"
+    assert probe.main(["--speeds", "1.0", "--bearings", "0", "--seconds", "3", "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    (row,) = data["rows"]
+    assert row["speed"] == 1.0 and row["target_m"] == 3.0 and not row["fell"]
+    assert 1.0 < row["along_m"] < 4.0 and row["time_to_1m_s"] is not None  # it walks off with a 1 m/s target
+    with pytest.raises(SystemExit, match="positive"):
+        probe.main(["--speeds", "0", "--bearings", "0"])
