@@ -22,7 +22,13 @@ furniture, beside a wall), ``open`` elsewhere. ``--plot`` draws the scene with e
 cause. ``--set`` gives NavConfig fields to the run (e.g. ``amp_wall_strength=0.3``, as ``navzoo eval pedestrians
 --set``). The summary's ``walls`` splits the wall contacts of all samples (walking or standing) by whether another
 person is within ``PASSING_M`` (1.5 m): contacts while people pass or queue, against contacts of a person alone
-(along a wall, round a corner). A diagnostic: the counts depend on the seed, and it says where person-time goes, not why a policy acts.
+(along a wall, round a corner). Each sample also records ``target_bearing_deg``, the bearing of the person's next
+target points (the mean of the next five, 0.5 s apart) from the body's heading, and the summary's ``facing`` splits
+the standing samples by it: ``behind`` (more than 90 degrees off), ``side`` (45-90) and ``ahead``, with the mean
+distance of those points from a standing body (``target_points_m``; the controller walks off slowly, or not at all,
+toward slow targets behind it: scripts/amp_slow_target_probe.py). ``--const NAME=VALUE`` sets an upper-case numeric
+or boolean constant of ``navzoo.envs.amp_humans`` for the run (e.g. ``--const STALL_WARP_S=1.0``). A diagnostic: the
+counts depend on the seed, and it says where person-time goes, not why a policy acts.
 """
 
 from __future__ import annotations
@@ -64,6 +70,9 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, every:
             if steps % k_every:
                 continue
             pos, tgt = env.pos[h].copy(), env.amp.target_now().copy()
+            root, heading, _, _ = env.amp.planar()
+            ahead = env.amp.waypoints()[:, :5].mean(axis=1) - root
+            bearing = np.degrees((np.arctan2(ahead[:, 1], ahead[:, 0]) - heading + np.pi) % (2 * np.pi) - np.pi)
             speed = np.linalg.norm(pos - prev_pos, axis=1) / dt_s
             tgt_speed = np.linalg.norm(tgt - prev_tgt, axis=1) / dt_s
             prev_pos, prev_tgt = pos, tgt
@@ -79,6 +88,7 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, every:
                     "target_speed": float(tgt_speed[j]), "wall": bool(env.human_map_contact[j]),
                     "agent": bool(env.human_agent_contact[j]),
                     "nearest_m": float(d[j].min()) if len(h) > 1 else float("inf"), "clearance": float(clear[j]),
+                    "target_bearing_deg": float(bearing[j]), "target_points_m": float(np.linalg.norm(ahead[j])),
                 })
         goals = int(env.goals_reached[h].sum())
         wrapped.close()
@@ -90,6 +100,26 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, every:
             "seconds": seconds, "seed": seed, "every_s": dt_s,
             "still_mps": still, "goals": goals, "wall_s": round(time.time() - t0, 1), "samples": samples,
             "summary": summarize(samples)}
+
+
+def parse_const(items: list[str]) -> dict[str, float | int | bool]:
+    """``NAME=VALUE`` items for upper-case numeric or boolean constants of ``navzoo.envs.amp_humans``, each typed as
+    the constant is; ValueError naming the item otherwise."""
+    from navzoo.envs import amp_humans
+
+    out: dict[str, float | int | bool] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        current = getattr(amp_humans, name, None)
+        if not sep or not name.isupper() or not isinstance(current, bool | int | float):
+            raise ValueError(f"--const {item!r}: expected NAME=VALUE of a numeric or boolean upper-case constant of "
+                             "navzoo.envs.amp_humans")
+        try:
+            number = float(value)
+        except ValueError:
+            raise ValueError(f"--const {item!r}: {value!r} is not a number") from None
+        out[name] = bool(number) if isinstance(current, bool) else int(number) if isinstance(current, int) else number
+    return out
 
 
 def classify(s: dict, still: float) -> str:
@@ -117,6 +147,11 @@ def summarize(samples: list[dict]) -> dict:
         }
     wall = [s for s in samples if s["wall"]]
     passing = [s for s in wall if s["nearest_m"] < PASSING_M]
+    facing = {"behind": lambda b: b > 90.0, "side": lambda b: 45.0 < b <= 90.0, "ahead": lambda b: b <= 45.0}
+    out["facing"] = {k: sum(test(abs(x.get("target_bearing_deg", 0.0))) for x in stand) / n if n else 0.0
+                     for k, test in facing.items()}
+    out["facing"]["target_points_m"] = (float(np.mean([x.get("target_points_m", np.nan) for x in stand]))
+                                        if stand else float("nan"))
     out["walls"] = {"contact_share": len(wall) / n if n else 0.0,
                     "passing": len(passing) / n if n else 0.0, "alone": (len(wall) - len(passing)) / n if n else 0.0,
                     "standing": sum(s["cause"] is not None for s in wall) / n if n else 0.0}
@@ -189,6 +224,8 @@ def main() -> None:
                     help="diffusion crowd settings (names as in `navzoo eval crowd-matched --diffusion-set`)")
     ap.add_argument("--set", dest="env_set", action="append", default=[], metavar="KEY=VALUE",
                     help="NavConfig field for the run, repeatable (e.g. --set amp_wall_strength=0.3)")
+    ap.add_argument("--const", action="append", default=[], metavar="NAME=VALUE",
+                    help="upper-case numeric or boolean constant of navzoo.envs.amp_humans, repeatable")
     ap.add_argument("--out", required=True, help="JSON result (samples and summary)")
     ap.add_argument("--plot", default=None, help="PNG top view of the standing samples")
     ap.add_argument("--plot-contacts", nargs="+", default=None, metavar="TRACE.json",
@@ -205,10 +242,16 @@ def main() -> None:
     try:
         settings = check_diffusion_settings(_settings(args.diffusion_set))
         overrides = env_set_option("amp_stand_trace.py", args.env_set)
+        consts = parse_const(args.const)
     except ValueError as e:
         ap.error(str(e))
+    from navzoo.envs import amp_humans
+
+    for name, value in consts.items():
+        setattr(amp_humans, name, value)
     result = trace(args.scene, args.people, args.crowd, args.seconds, args.seed, args.every, args.still, args.policy,
                    settings, overrides)
+    result["const"] = consts
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(result) + "\n")
     print(json.dumps({k: v for k, v in result.items() if k != "samples"}, indent=1))

@@ -1,5 +1,5 @@
-"""Stalled physics pedestrians walk their diffusion plans faster (amp_humans.STALL_WARP_S), and the two probe
-scripts behind docs/crowd.md "Bodies that stand at doors"."""
+"""Stalled physics pedestrians walk their diffusion plans faster (amp_humans.STALL_WARP_S), and the slow-target probe
+behind docs/pedestrians.md "Slow targets"."""
 
 from __future__ import annotations
 
@@ -98,36 +98,6 @@ def test_a_stalled_body_gets_a_target_that_walks_its_slow_plan_faster(monkeypatc
     assert (reach[True] > 1.5 * reach[False]).all()  # at no less than 0.6 x the preferred speed
     assert (reach[True] <= env.v_pref[env.n_robots:] * 2.0 + 0.05).all()
     env.close()
-
-
-def test_standing_shares_split_by_bearing_and_nearest_person():
-    probe = _script("amp_standing_probe")
-    speed = np.array([[0.0, 1.0], [0.05, 0.0], [0.1, 0.0], [1.0, 0.0]])
-    bearing = np.array([[3.0, 0.0], [1.0, 0.2], [0.1, 0.0], [0.0, 0.0]])
-    lead = np.full((4, 2), 0.5)
-    nearest = np.array([[0.5, 3.0], [1.2, 3.0], [2.0, 3.0], [0.5, 3.0]])
-    active = np.ones((4, 2), dtype=bool)
-    active[3, 1] = False  # arrived: not counted
-    out = probe.standing_shares(speed, bearing, lead, nearest, active)
-    assert out["person_steps"] == 7
-    assert out["still"] == pytest.approx(5 / 7)
-    assert out["still_behind"] == pytest.approx(1 / 7) and out["still_side"] == pytest.approx(1 / 7)
-    assert out["still_ahead"] == pytest.approx(3 / 7)
-    band = {b["from_m"]: b for b in out["still_by_nearest"]}
-    assert band[0.0]["time_share"] == pytest.approx(2 / 7) and band[0.0]["still"] == pytest.approx(0.5)
-    assert band[2.5]["still"] == pytest.approx(2 / 3)
-    with pytest.raises(ValueError, match="no person-time"):
-        probe.standing_shares(speed, bearing, lead, nearest, np.zeros((4, 2), dtype=bool))
-
-
-def test_standing_probe_refuses_unknown_constants():
-    probe = _script("amp_standing_probe")
-    with pytest.raises(SystemExit, match="upper-case constant"):
-        probe.parse_const(["NOT_A_CONSTANT=1"])
-    with pytest.raises(SystemExit, match="not a number"):
-        probe.parse_const(["STALL_WARP_S=soon"])
-    assert probe.parse_const(["STALL_WARP_S=1", "GRADED_WALL_MARGIN=0"]) == {"STALL_WARP_S": 1.0,
-                                                                             "GRADED_WALL_MARGIN": False}
 
 
 def test_slow_target_probe_writes_its_rows(tmp_path):

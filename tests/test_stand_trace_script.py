@@ -38,6 +38,25 @@ def test_summary_shares_split_into_narrow_and_open():
     assert s["walls"] == {"contact_share": 0.0, "passing": 0.0, "alone": 0.0, "standing": 0.0}
 
 
+def test_standing_samples_split_by_where_their_target_points_lie():
+    samples = [dict(_sample(target_bearing_deg=170.0, target_points_m=0.3), cause="target stands", narrow=True),
+               dict(_sample(target_bearing_deg=-100.0, target_points_m=0.5), cause="person near", narrow=False),
+               dict(_sample(target_bearing_deg=60.0, target_points_m=0.4), cause="person near", narrow=False),
+               dict(_sample(target_bearing_deg=-170.0), cause=None, narrow=False)]  # walking: not counted
+    f = st.summarize(samples)["facing"]
+    assert f["behind"] == pytest.approx(0.5) and f["side"] == pytest.approx(0.25) and f["ahead"] == 0.0
+    assert f["target_points_m"] == pytest.approx(0.4)
+
+
+def test_constants_are_checked_and_typed():
+    assert st.parse_const(["STALL_WARP_S=1", "GRADED_WALL_MARGIN=0", "WAYPOINT_LOOKAHEAD=2"]) == {
+        "STALL_WARP_S": 1.0, "GRADED_WALL_MARGIN": False, "WAYPOINT_LOOKAHEAD": 2}
+    with pytest.raises(ValueError, match="upper-case constant"):
+        st.parse_const(["NOT_A_CONSTANT=1"])
+    with pytest.raises(ValueError, match="not a number"):
+        st.parse_const(["STALL_WARP_S=soon"])
+
+
 def test_wall_contacts_split_by_a_person_within_passing_range():
     samples = [dict(_sample(wall=True, nearest_m=0.8), cause=None, narrow=True),         # passing, walking
                dict(_sample(wall=True, nearest_m=st.PASSING_M + 0.1), cause=None, narrow=True),  # alone
@@ -55,6 +74,8 @@ def test_a_short_trace_of_physics_pedestrians(tmp_path):
     total = sum(c["share_of_person_time"] for c in r["summary"]["causes"].values())
     assert total == pytest.approx(r["summary"]["standing_share"])
     assert all((s["cause"] is None) == (s["speed"] >= 0.15) for s in r["samples"])
+    assert all(-180.0 <= s["target_bearing_deg"] <= 180.0 and s["target_points_m"] >= 0 for s in r["samples"])
+    assert set(r["summary"]["facing"]) == {"behind", "side", "ahead", "target_points_m"}
     st.plot(r, str(tmp_path / "t.png"))
     assert (tmp_path / "t.png").stat().st_size > 1000
     st.plot_contacts([r, r], str(tmp_path / "c.png"))
