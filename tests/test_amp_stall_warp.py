@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from navzoo.envs import amp_humans
-from navzoo.envs.amp_humans import stall_warp
+from navzoo.envs.amp_humans import near_narrow, stall_warp
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -34,6 +34,13 @@ def test_stall_warp_brings_a_slow_plan_up_to_the_pace_floor():
     assert w[2] == 1.0  # already faster than the floor: unchanged, never slowed
     assert w[3] == pytest.approx(4.0)  # at most max_warp
     assert (stall_warp(plan, v_pref) == w).all()  # the module's defaults are these
+
+
+def test_near_narrow_finds_people_beside_a_narrow_stretch_of_their_path():
+    door = np.array([[0.0, 0.0], [1.0, 0.0]])
+    pos = np.array([[0.5, 1.2], [0.5, 2.0], [3.0, 0.0]])
+    near = near_narrow([door, door, np.zeros((0, 2))], pos, 1.5)
+    assert near.tolist() == [True, False, False]  # 1.2 m from the door; 2 m away; no narrow points at all
 
 
 def _diffusion_env():

@@ -282,6 +282,13 @@ def stall_warp(plan_speed: np.ndarray, v_pref: np.ndarray, pace: float | None = 
     return np.where(plan_speed > min_speed, np.clip(want, 1.0, max_warp), 1.0)
 
 
+def near_narrow(points: list[np.ndarray], pos: np.ndarray, reach: float) -> np.ndarray:
+    """(P,) whether each person's position ``pos`` (P, 2) lies within ``reach`` m of one of its narrow points
+    (``points[j]``: (K_j, 2), :func:`narrow_points`; none: False)."""
+    return np.array([len(pts) > 0 and bool((np.linalg.norm(np.asarray(pts) - p, axis=1) < reach).any())
+                     for pts, p in zip(points, pos, strict=True)], dtype=bool)
+
+
 def narrow_points(path: np.ndarray, clearance, below: float, spacing: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
     """Points of the polyline ``path`` (L, 2), every ``spacing`` m, whose clearance is below ``below``.
 
@@ -573,8 +580,7 @@ class AmpHumans:
                                             - diffusion._plans_at(t0)[stalled, 0], axis=1) / STALL_PLAN_S
                 warp = stall_warp(plan_speed, v_pref[stalled])
                 if STALL_NARROW_REACH > 0 and narrow is not None:  # not where the path passes a narrow door
-                    near = np.array([len(narrow[j][0]) > 0 and bool(
-                        (np.linalg.norm(narrow[j][0] - pos[j], axis=1) < STALL_NARROW_REACH).any()) for j in stalled])
+                    near = near_narrow([narrow[j][0] for j in stalled], pos[stalled], STALL_NARROW_REACH)
                     warp = np.where(near, 1.0, warp)
         out = np.empty((self.n, steps + 1, 2))
         out[:, 0] = pos
