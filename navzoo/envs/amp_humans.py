@@ -116,10 +116,10 @@ DIFFUSION_LOOKAHEAD_S = 0.4
 # seeds not used to choose (4, 5) 1.0 against 1.3: 0.834 / 0.808 against 0.715 / 0.771.
 DIFFUSION_SPEED_CAP = 1.0
 # Plans are sampled from each person's recent past, so a body that has stopped (a yield, a push, a jam at a door)
-# gets slow plans; its target then creeps (the rollout toward a plan that walks 0.2 m/s, slowed further by the
-# jamb it stands next to) and the controller does not walk toward a target that slow, least of all one behind it
-# (a lone body follows a straight target at 0.3 m/s only 1 m in 11 s when the target starts 135 degrees off its
-# heading, and at 0.6 m/s walks off within 2.5 s whatever the bearing: docs/pedestrians.md, "Slow targets").
+# gets slow plans; its target then creeps (the rollout toward a slow plan, slowed further by a jamb the body stands
+# next to) and the controller does not walk toward a target that slow, least of all one behind it (a lone body
+# follows a straight target at 0.3 m/s only 1 m in 11 s when the target starts 135 degrees off its heading, and from
+# 0.45 m/s on goes 1 m within 4 s whatever the bearing: docs/pedestrians.md, "Slow targets").
 # Bodies stood this way for tens of seconds beside door jambs with the door free. With STALL_WARP_S > 0, a person
 # whose body has stood (planar speed under STALL_SPEED) for that long gets a rollout that walks its plan's path at
 # no less than STALL_PACE x its preferred speed (the plan's time runs faster, by at most STALL_MAX_WARP; the
