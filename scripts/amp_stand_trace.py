@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -103,22 +104,16 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, every:
 
 
 def parse_const(items: list[str]) -> dict[str, float | int | bool]:
-    """``NAME=VALUE`` items for upper-case numeric or boolean constants of ``navzoo.envs.amp_humans``, each typed as
-    the constant is; ValueError naming the item otherwise."""
-    from navzoo.envs import amp_humans
+    """``--const NAME=VALUE`` items: upper-case numeric or boolean constants of ``navzoo.envs.amp_humans``, parsed as
+    the SET field of ``scripts/amp_target_ablation.py`` is (``parse_constants``); ValueError naming the item."""
+    if not items:
+        return {}
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from amp_target_ablation import parse_constants
 
     out: dict[str, float | int | bool] = {}
     for item in items:
-        name, sep, value = item.partition("=")
-        current = getattr(amp_humans, name, None)
-        if not sep or not name.isupper() or not isinstance(current, bool | int | float):
-            raise ValueError(f"--const {item!r}: expected NAME=VALUE of a numeric or boolean upper-case constant of "
-                             "navzoo.envs.amp_humans")
-        try:
-            number = float(value)
-        except ValueError:
-            raise ValueError(f"--const {item!r}: {value!r} is not a number") from None
-        out[name] = bool(number) if isinstance(current, bool) else int(number) if isinstance(current, int) else number
+        out.update(parse_constants(item, item, what="--const"))
     return out
 
 

@@ -101,9 +101,10 @@ def parse_config(text: str) -> dict:
     return cfg
 
 
-def parse_constants(field: str, text: str) -> dict:
+def parse_constants(field: str, text: str, what: str = "SET") -> dict:
     """The SET field: ``NAME=VALUE`` pairs joined by ``+``, each an upper-case constant of
-    ``navzoo.envs.amp_humans``; values take the constant's type (booleans as 1 or 0)."""
+    ``navzoo.envs.amp_humans``; values take the constant's type (booleans as 1 or 0). ``what`` names the option in
+    the error messages (other scripts' ``--const`` takes the same pairs)."""
     import navzoo.envs.amp_humans as ah
 
     out: dict = {}
@@ -111,7 +112,7 @@ def parse_constants(field: str, text: str) -> dict:
         name, eq, value = pair.partition("=")
         current = getattr(ah, name, None) if name.isupper() else None
         if not eq or not isinstance(current, (bool, int, float)):
-            raise ValueError(f"SET takes NAME=VALUE of a numeric or boolean upper-case constant of "
+            raise ValueError(f"{what} takes NAME=VALUE of a numeric or boolean upper-case constant of "
                              f"navzoo.envs.amp_humans, got {pair!r} in {text!r}")
         try:
             if isinstance(current, bool):
@@ -119,8 +120,8 @@ def parse_constants(field: str, text: str) -> dict:
             else:
                 out[name] = type(current)(value)
         except (KeyError, ValueError):
-            raise ValueError(f"{name} takes {'1 or 0' if isinstance(current, bool) else type(current).__name__}, "
-                             f"got {value!r} in {text!r}") from None
+            kind = "1 or 0" if isinstance(current, bool) else f"{type(current).__name__}: {value!r} is not a number"
+            raise ValueError(f"{name} takes {kind}, got {value!r} in {text!r}") from None
     return out
 
 

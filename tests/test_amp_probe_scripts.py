@@ -2,22 +2,11 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _script(name: str):
-    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+from tests.script_modules import load_script
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +17,7 @@ def lib():
 
 
 def test_a_clip_against_itself_errs_more_the_further_it_is_shifted(lib):
-    floor = _script("amp_rotation_phase_floor")
+    floor = load_script("amp_rotation_phase_floor")
     zero = floor.shifted_errors(lib, 0.0)
     assert zero["n_clips"] == 2 and all(abs(zero[k]) < 1e-6 for k in floor.KEYS)
     rows = [floor.shifted_errors(lib, s) for s in (0.05, 0.1, 0.2)]
@@ -37,7 +26,7 @@ def test_a_clip_against_itself_errs_more_the_further_it_is_shifted(lib):
 
 
 def test_the_phase_floor_cli_writes_its_rows(tmp_path, capsys):
-    floor = _script("amp_rotation_phase_floor")
+    floor = load_script("amp_rotation_phase_floor")
     out = tmp_path / "floor.json"
     assert floor.main(["--shifts", "0.1", "--json", str(out)]) == 0
     rows = json.loads(out.read_text())
@@ -45,7 +34,7 @@ def test_the_phase_floor_cli_writes_its_rows(tmp_path, capsys):
 
 
 def test_the_motor_gain_probe_measures_noise_as_jitter(lib):
-    probe = _script("amp_motor_gain_probe")
+    probe = load_script("amp_motor_gain_probe")
     from navzoo.agents.amp.stage0 import sample_starts
 
     clips, t = sample_starts(lib, 4, seed=0, margin=1.0)
@@ -59,7 +48,7 @@ def test_the_motor_gain_probe_measures_noise_as_jitter(lib):
 def test_stance_offset_probe_offsets_the_chosen_actions_and_leaves_the_rest(lib):
     import numpy as np
 
-    probe = _script("amp_stance_offset_probe")
+    probe = load_script("amp_stance_offset_probe")
 
     class Fixed:
         obs_dim = 7

@@ -3,26 +3,14 @@ behind docs/pedestrians.md "Slow targets"."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from navzoo.envs import amp_humans
 from navzoo.envs.amp_humans import near_narrow, stall_warp
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _script(name: str):
-    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+from tests.script_modules import load_script
 
 
 def test_stall_warp_brings_a_slow_plan_up_to_the_pace_floor():
@@ -108,7 +96,7 @@ def test_a_stalled_body_gets_a_target_that_walks_its_slow_plan_faster(monkeypatc
 
 
 def test_slow_target_probe_writes_its_rows(tmp_path):
-    probe = _script("amp_slow_target_probe")
+    probe = load_script("amp_slow_target_probe")
     out = tmp_path / "slow.json"
     assert probe.main(["--speeds", "1.0", "--bearings", "0", "--seconds", "3", "--json", str(out)]) == 0
     data = json.loads(out.read_text())
