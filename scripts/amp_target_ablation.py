@@ -120,8 +120,8 @@ def parse_constants(field: str, text: str, what: str = "SET") -> dict:
             else:
                 out[name] = type(current)(value)
         except (KeyError, ValueError):
-            kind = "1 or 0" if isinstance(current, bool) else f"{type(current).__name__}: {value!r} is not a number"
-            raise ValueError(f"{name} takes {kind}, got {value!r} in {text!r}") from None
+            kind, why = ("1 or 0", "") if isinstance(current, bool) else (type(current).__name__, " (not a number)")
+            raise ValueError(f"{name} takes {kind}, got {value!r}{why} in {text!r}") from None
     return out
 
 
