@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import pytest
 
-_SPEC = importlib.util.spec_from_file_location(
-    "ablation_scene_weighted", Path(__file__).resolve().parents[1] / "scripts" / "ablation_scene_weighted.py")
-sw = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(sw)
+from tests.script_modules import load_script
+
+sw = load_script("ablation_scene_weighted")
 
 
 def _row(scene, seed, success, timeout, goal_success=None):

@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import pytest
 
-_SPEC = importlib.util.spec_from_file_location("amp_target_ablation",
-                                               Path(__file__).resolve().parents[1] / "scripts" / "amp_target_ablation.py")
-ablation = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(ablation)
+from tests.script_modules import load_script
+
+ablation = load_script("amp_target_ablation")
 
 
 def _row(config: dict, scene: str, seed: int, crowd: str | None = "sfm", success: int = 3, **extra) -> dict:

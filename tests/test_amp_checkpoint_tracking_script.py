@@ -2,23 +2,19 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import pytest
+
+from tests.script_modules import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
 def script():
-    spec = importlib.util.spec_from_file_location("amp_checkpoint_tracking", ROOT / "scripts" / "amp_checkpoint_tracking.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("amp_checkpoint_tracking")
 
 
 def test_sources_are_exported_tracked_and_skipped_when_done(script, tmp_path, monkeypatch):

@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import pytest
 
+from tests.script_modules import load_script
+
 ROOT = Path(__file__).resolve().parents[1]
-spec = importlib.util.spec_from_file_location("amp_fall_times", ROOT / "scripts" / "amp_fall_times.py")
-aft = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(aft)
+aft = load_script("amp_fall_times")
 
 
 def _row(source, protocol, falls):

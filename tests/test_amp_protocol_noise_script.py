@@ -1,16 +1,13 @@
 """scripts/amp_protocol_noise.py: the protocol's spread between a reference policy and its untrained copies."""
 
-import importlib.util
 import json
 import math
-from pathlib import Path
 
 import pytest
 
-_SPEC = importlib.util.spec_from_file_location(
-    "amp_protocol_noise", Path(__file__).resolve().parents[1] / "scripts" / "amp_protocol_noise.py")
-pn = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(pn)
+from tests.script_modules import load_script
+
+pn = load_script("amp_protocol_noise")
 
 
 def _row(config, scene, seed, success, timeout, fall=0):

@@ -3,16 +3,13 @@
 from __future__ import annotations
 
 import gzip
-import importlib.util
 import json
-from pathlib import Path
 
 import pytest
 
-_SPEC = importlib.util.spec_from_file_location("amp_run_summary",
-                                               Path(__file__).resolve().parents[1] / "scripts" / "amp_run_summary.py")
-summary = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(summary)
+from tests.script_modules import load_script
+
+summary = load_script("amp_run_summary")
 
 
 def _row(it: int, wall: float, fps: float, task: float = 0.3) -> dict:

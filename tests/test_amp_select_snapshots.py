@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import shutil
 import sys
@@ -10,11 +9,11 @@ from pathlib import Path
 
 import pytest
 
+from tests.script_modules import load_script
+
 _SCRIPTS = Path(__file__).resolve().parents[1] / "scripts"
 sys.path.insert(0, str(_SCRIPTS))
-_SPEC = importlib.util.spec_from_file_location("amp_select_snapshots", _SCRIPTS / "amp_select_snapshots.py")
-select = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(select)
+select = load_script("amp_select_snapshots")
 SHIPPED = Path(__file__).resolve().parents[1] / "policies" / "amp_pedestrian"
 
 

@@ -1,15 +1,12 @@
 """scripts/diffusion_roughness.py: the walked accelerations split at goal arrivals, and its walker settings."""
 
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-_SPEC = importlib.util.spec_from_file_location(
-    "diffusion_roughness", Path(__file__).resolve().parents[1] / "scripts" / "diffusion_roughness.py")
-dr = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(dr)
+from tests.script_modules import load_script
+
+dr = load_script("diffusion_roughness")
 
 
 def test_accelerations_near_a_goal_turn_are_split_from_the_straight_walk():

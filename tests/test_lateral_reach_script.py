@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-_spec = importlib.util.spec_from_file_location(
-    "amp_lateral_reach", Path(__file__).resolve().parents[1] / "scripts" / "amp_lateral_reach.py")
-reach = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(reach)
+from tests.script_modules import load_script
+
+reach = load_script("amp_lateral_reach")
 
 
 def _quat_yaw(yaw: float) -> np.ndarray:

@@ -2,17 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 
 from navzoo.benchmark import pedestrians as P
+from tests.script_modules import load_script
 
-_SPEC = importlib.util.spec_from_file_location("amp_pace_probe",
-                                               Path(__file__).resolve().parents[1] / "scripts" / "amp_pace_probe.py")
-probe = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(probe)
+probe = load_script("amp_pace_probe")
 
 
 def test_a_lone_physics_pedestrian_keeps_a_slow_targets_pace():

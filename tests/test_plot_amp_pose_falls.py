@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import pytest
 
+from tests.script_modules import load_script
+
 ROOT = Path(__file__).resolve().parents[1]
-spec = importlib.util.spec_from_file_location("plot_amp_pose_falls", ROOT / "scripts" / "plot_amp_pose_falls.py")
-ppf = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(ppf)
+ppf = load_script("plot_amp_pose_falls")
 
 
 def _row(source, protocol, it, pose=0.4, falls=0.1, clips=0.5):

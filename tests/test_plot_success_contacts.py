@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import pytest
 
-_SPEC = importlib.util.spec_from_file_location(
-    "plot_success_contacts", Path(__file__).resolve().parents[1] / "scripts" / "plot_success_contacts.py")
-plot = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(plot)
+from tests.script_modules import load_script
+
+plot = load_script("plot_success_contacts")
 
 
 def _row(scene: str, seed: int, success: int, timeout: int, map_trips: int) -> dict:

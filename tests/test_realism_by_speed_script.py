@@ -2,18 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from navzoo.benchmark import realism
+from tests.script_modules import load_script
 
-_SPEC = importlib.util.spec_from_file_location(
-    "amp_realism_by_speed", Path(__file__).resolve().parents[1] / "scripts" / "amp_realism_by_speed.py")
-rbs = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(rbs)
+rbs = load_script("amp_realism_by_speed")
 
 
 def test_bands_are_checked_and_closed_at_both_ends():

@@ -3,13 +3,9 @@ sorted overlapping pairs."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
+from tests.script_modules import load_script
 
-_SPEC = importlib.util.spec_from_file_location(
-    "amp_reset_determinism", Path(__file__).resolve().parents[1] / "scripts" / "amp_reset_determinism.py")
-rd = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(rd)
+rd = load_script("amp_reset_determinism")
 
 
 def test_a_reset_world_repeats_a_fresh_one():

@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import pytest
 
-_SPEC = importlib.util.spec_from_file_location("scene_load_sweep",
-                                               Path(__file__).resolve().parents[1] / "scripts" / "scene_load_sweep.py")
-sweep = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(sweep)
+from tests.script_modules import load_script
+
+sweep = load_script("scene_load_sweep")
 
 
 def test_bad_options_are_named():

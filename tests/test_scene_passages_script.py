@@ -2,18 +2,17 @@
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from tests.script_modules import load_script
+
 _SCRIPTS = Path(__file__).resolve().parents[1] / "scripts"
 sys.path.insert(0, str(_SCRIPTS))
-_SPEC = importlib.util.spec_from_file_location("scene_passages", _SCRIPTS / "scene_passages.py")
-sp = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(sp)
+sp = load_script("scene_passages")
 
 from navzoo.world.library import get_scene  # noqa: E402
 from navzoo.world.occupancy import OccupancyGrid  # noqa: E402

@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-_SPEC = importlib.util.spec_from_file_location("amp_stance_split",
-                                               Path(__file__).resolve().parents[1] / "scripts" / "amp_stance_split.py")
-split = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(split)
+from tests.script_modules import load_script
+
+split = load_script("amp_stance_split")
 
 
 def test_the_clips_alternate_their_feet_and_stay_mostly_inside_the_free_band():

@@ -2,15 +2,11 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
 
-_SPEC = importlib.util.spec_from_file_location("amp_stand_trace",
-                                               Path(__file__).resolve().parents[1] / "scripts" / "amp_stand_trace.py")
-st = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(st)
+from tests.script_modules import load_script
+
+st = load_script("amp_stand_trace")
 
 
 def _sample(**kw):

@@ -3,16 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
-from pathlib import Path
 
 import pytest
 
-_SPEC = importlib.util.spec_from_file_location("amp_timeout_trace",
-                                               Path(__file__).resolve().parents[1] / "scripts" / "amp_timeout_trace.py")
-trace = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(trace)
+from tests.script_modules import load_script
+
+trace = load_script("amp_timeout_trace")
 
 
 def test_settings_are_typed_and_checked():

@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-_SPEC = importlib.util.spec_from_file_location(
-    "amp_wall_contact_links", Path(__file__).resolve().parents[1] / "scripts" / "amp_wall_contact_links.py")
-links = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(links)
+from tests.script_modules import load_script
+
+links = load_script("amp_wall_contact_links")
 
 
 def _door(x0: float, x1: float):
