@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from navzoo.envs import amp_humans
-from navzoo.envs.amp_humans import near_narrow, stall_warp
+from navzoo.envs.amp_humans import blocked_ahead, near_narrow, stall_warp
 from tests.script_modules import load_script
 
 
@@ -29,6 +29,19 @@ def test_near_narrow_finds_people_beside_a_narrow_stretch_of_their_path():
     pos = np.array([[0.5, 1.2], [0.5, 2.0], [3.0, 0.0]])
     near = near_narrow([door, door, np.zeros((0, 2))], pos, 1.5)
     assert near.tolist() == [True, False, False]  # 1.2 m from the door; 2 m away; no narrow points at all
+
+
+def test_blocked_ahead_counts_people_in_front_toward_the_plan_only():
+    pos = np.array([[0.0, 0.0], [5.0, 0.0], [10.0, 0.0], [20.0, 0.0]])
+    to_plan = np.array([[1.0, 0.0], [1.0, 0.0], [0.0, 2.0], [0.0, 0.0]])
+    others = np.vstack([pos, [[0.8, 0.3], [4.2, 0.0], [10.9, 0.0], [20.5, 0.0]]])
+    b = blocked_ahead(pos, to_plan, others, reach=1.0, half_angle_deg=60.0)
+    # 0.85 m ahead, 21 degrees off; behind the second person; beside the third (90 degrees off its +y plan);
+    # the fourth has no plan direction (a wait): nobody counts as ahead
+    assert b.tolist() == [True, False, False, False]
+    assert not blocked_ahead(pos[:1], to_plan[:1], others, reach=0.8, half_angle_deg=60.0)[0]  # farther than reach
+    assert not blocked_ahead(pos[:1], to_plan[:1], pos[:1], reach=1.0, half_angle_deg=60.0)[0]  # itself: skipped
+    assert blocked_ahead(pos, to_plan, np.zeros((0, 2)), 1.0, 60.0).tolist() == [False] * 4
 
 
 def _diffusion_env():
@@ -92,6 +105,22 @@ def test_a_stalled_body_gets_a_target_that_walks_its_slow_plan_faster(monkeypatc
     assert (reach[False] < 0.55).all()  # about the plan's 0.4 m
     assert (reach[True] > 1.5 * reach[False]).all()  # at no less than 0.6 x the preferred speed
     assert (reach[True] <= env.v_pref[env.n_robots:] * 2.0 + 0.05).all()
+    # with STALL_CLEAR_M, a body whose plan leads into someone standing just ahead keeps the plan's own pace
+    monkeypatch.setattr(amp_humans, "STALL_CLEAR_M", 1.0)
+    real = amp.planar
+
+    def planar_one_ahead():
+        p, h, v, w = real()
+        p = p.copy()
+        p[1] = pos[0] + 0.7 * goal_dir[0]  # the second body stands 0.7 m ahead of the first, on its plan
+        return p, h, v, w
+
+    monkeypatch.setattr(amp, "planar", planar_one_ahead)
+    amp.still_s[:] = 2.0
+    amp.plan_all()
+    reach_clear = np.linalg.norm(amp.paths[0, 60] - pos[0])
+    assert reach_clear < 0.55  # no warp: the plan's own 0.4 m
+    monkeypatch.setattr(amp, "planar", real)
     env.close()
 
 

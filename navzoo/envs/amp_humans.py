@@ -136,6 +136,11 @@ STALL_MAX_WARP = 4.0
 # Not within STALL_NARROW_REACH (m) of a stretch of the person's A* path too narrow for the full wall margin (the
 # graded wall margin's narrow points: doors under about 1.0 m); 0 = everywhere.
 STALL_NARROW_REACH = 0.0
+# Not where another person (or robot) stands within STALL_CLEAR_M (m, centre to centre) ahead of the person, within
+# STALL_CLEAR_DEG of the direction to its plan's point STALL_PLAN_S ahead: a body that stands behind someone waits
+# for them, and a faster target would walk it into them. 0 = everywhere.
+STALL_CLEAR_M = 0.0
+STALL_CLEAR_DEG = 60.0
 
 
 # A physics body is pushed and swerves: it can pass a waypoint of its A* path farther than the
@@ -289,6 +294,24 @@ def near_narrow(points: list[np.ndarray], pos: np.ndarray, reach: float) -> np.n
     (``points[j]``: (K_j, 2), :func:`narrow_points`; none: False)."""
     return np.array([len(pts) > 0 and bool((np.linalg.norm(np.asarray(pts) - p, axis=1) < reach).any())
                      for pts, p in zip(points, pos, strict=True)], dtype=bool)
+
+
+def blocked_ahead(pos: np.ndarray, heading_to: np.ndarray, others: np.ndarray, reach: float,
+                  half_angle_deg: float) -> np.ndarray:
+    """(P,) whether someone of ``others`` (M, 2) stands within ``reach`` m of each position ``pos`` (P, 2), inside
+    ``half_angle_deg`` of the direction ``heading_to`` (P, 2, any length; zero length: nobody counts as ahead).
+    Points that coincide with the person itself (itself among ``others``) are skipped."""
+    pos = np.asarray(pos, dtype=float).reshape(-1, 2)
+    d = np.asarray(heading_to, dtype=float).reshape(-1, 2)
+    others = np.asarray(others, dtype=float).reshape(-1, 2)
+    if not len(pos) or not len(others):
+        return np.zeros(len(pos), dtype=bool)
+    rel = others[None] - pos[:, None]  # (P, M, 2)
+    dist = np.linalg.norm(rel, axis=2)
+    norm = np.linalg.norm(d, axis=1)
+    cos = np.einsum("pmk,pk->pm", rel, d) / np.maximum(dist * norm[:, None], 1e-12)
+    ahead = (dist > 1e-6) & (dist < reach) & (cos >= np.cos(np.radians(half_angle_deg))) & (norm[:, None] > 1e-9)
+    return ahead.any(axis=1)
 
 
 def narrow_points(path: np.ndarray, clearance, below: float, spacing: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
@@ -584,6 +607,11 @@ class AmpHumans:
                 if STALL_NARROW_REACH > 0 and narrow is not None:  # not where the path passes a narrow door
                     near = near_narrow([narrow[j][0] for j in stalled], pos[stalled], STALL_NARROW_REACH)
                     warp = np.where(near, 1.0, warp)
+                if STALL_CLEAR_M > 0:  # not where someone stands just ahead, toward the plan
+                    to_plan = diffusion._plans_at(t0 + STALL_PLAN_S)[stalled, 0] - pos[stalled]
+                    others = np.concatenate([pos, r_pos]) if len(r_pos) else pos
+                    warp = np.where(blocked_ahead(pos[stalled], to_plan, others, STALL_CLEAR_M, STALL_CLEAR_DEG),
+                                    1.0, warp)
         out = np.empty((self.n, steps + 1, 2))
         out[:, 0] = pos
         prev_vel = vel
