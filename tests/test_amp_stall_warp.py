@@ -134,3 +134,53 @@ def test_slow_target_probe_writes_its_rows(tmp_path):
     assert 1.0 < row["along_m"] < 4.0 and row["time_to_1m_s"] is not None  # it walks off with a 1 m/s target
     with pytest.raises(SystemExit, match="positive"):
         probe.main(["--speeds", "0", "--bearings", "0"])
+
+
+def test_a_body_that_has_stood_long_on_a_crawling_plan_walks_its_path_when_the_way_is_free(monkeypatch):
+    assert amp_humans.STALL_CRAWL_S == 0.0
+    env = _diffusion_env()
+    amp, crowd = env.amp, env.diffusion
+    crowd.plan_now(env)
+    pos = amp.planar()[0]
+    h = np.arange(env.n_robots, env.n_total)
+    n_points = crowd.plan.shape[1]
+
+    def standing_plan(env_, who=None):  # a plan that stays where the body is: a wait the warp leaves alone
+        crowd.plan = np.repeat(pos[:, None], n_points, axis=1)
+        crowd.plan_t0 = np.full(2, env_.sim_time)
+        return crowd.plan
+
+    monkeypatch.setattr(crowd, "plan_now", standing_plan)
+    monkeypatch.setattr(amp_humans, "STALL_WARP_S", 1.0)  # on or off, the warp does nothing to a wait
+
+    def reach_after_2s(still_s: float) -> np.ndarray:
+        amp.still_s[:] = still_s
+        amp.plan_all()
+        return np.linalg.norm(amp.paths[:, 60] - pos, axis=1)
+
+    assert (reach_after_2s(10.0) < 0.2).all()  # off: the wait holds
+    monkeypatch.setattr(amp_humans, "STALL_CRAWL_S", 5.0)
+    assert (reach_after_2s(2.0) < 0.2).all()  # not yet stood long enough
+    reach = reach_after_2s(10.0)
+    v = env.v_pref[h]
+    assert (reach > 0.6 * v * 2.0 * 0.6).all() and (reach < 0.6 * v * 2.0 + 0.1).all()  # the A* path at 0.6 x v_pref
+    wp = np.stack([env.paths[i][min(env.wp_index[i], len(env.paths[i]) - 1)] for i in h])
+    step = amp.paths[:, 60] - pos
+    to_wp = wp - pos
+    cos = (step * to_wp).sum(1) / np.linalg.norm(step, axis=1) / np.linalg.norm(to_wp, axis=1)
+    assert (cos > 0.8).all()  # toward the path's waypoint
+    # someone standing 0.7 m ahead toward that waypoint: the first body waits
+    real = amp.planar
+
+    def planar_one_ahead():
+        p, hd, vel, w = real()
+        p = p.copy()
+        p[1] = pos[0] + 0.7 * to_wp[0] / np.linalg.norm(to_wp[0])
+        return p, hd, vel, w
+
+    monkeypatch.setattr(amp, "planar", planar_one_ahead)
+    amp.still_s[:] = 10.0
+    amp.plan_all()
+    assert np.linalg.norm(amp.paths[0, 60] - pos[0]) < 0.2
+    monkeypatch.setattr(amp, "planar", real)
+    env.close()
