@@ -512,7 +512,7 @@ class AmpHumans:
         self.k_prog = np.zeros(self.n, dtype=int)  # index of each person's current target point
         self.lag_all = env.diffusion is not None or LAG_LIMIT_RULES  # every target held to LAG_LIMIT_S (progress_index)
         self.fallen = np.zeros(self.n, dtype=bool)
-        self.still_s = np.zeros(self.n)  # how long each body has stood (< STALL_SPEED): STALL_WARP_S, STALL_CRAWL_S
+        self.still_s = np.zeros(self.n)  # how long each body has stood (speed < STALL_SPEED): STALL_WARP_S, STALL_CRAWL_S
         self.stance = np.zeros(self.n)  # running mean of foot_split (STANCE_TAU_S), updated by task_reward
         wall = env.config.amp_wall_strength
         self.a_wall = float(SFM_A_WALL if wall is None else wall)  # A_wall of the target rollouts
@@ -599,13 +599,6 @@ class AmpHumans:
         r_pos, r_vel, r_rad = env.pos[robots], env.vel[robots], env.radius[robots]
         tol = env.config.waypoint_tolerance
         steps = int(np.ceil(self.horizon / PLAN_DT))
-
-        def next_waypoints(who, at: np.ndarray) -> np.ndarray:
-            """Advance the people ``who`` along their A* paths from positions ``at``; their current waypoints."""
-            for j in who:
-                wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), at[j], tol, WAYPOINT_LOOKAHEAD, visible[j])
-            return np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in who])
-
         diffusion = env.diffusion
         if diffusion is not None:
             # The sampled plans give the direction and pace (as for kinematic diffusion pedestrians);
@@ -634,8 +627,11 @@ class AmpHumans:
                 crawl_speed = np.linalg.norm(diffusion._plans_at(t0 + STALL_PLAN_S)[crawl, 0]
                                              - diffusion._plans_at(t0)[crawl, 0], axis=1) / STALL_PLAN_S
                 crawl = crawl[crawl_speed <= STALL_MIN_PLAN_SPEED]
+                for j in crawl:
+                    wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD,
+                                                   visible[j])
                 if crawl.size:
-                    wp = next_waypoints(crawl, pos)
+                    wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in crawl])
                     others = np.concatenate([pos, r_pos]) if len(r_pos) else pos
                     crawl = crawl[~blocked_ahead(pos[crawl], wp - pos[crawl], others, STALL_CRAWL_CLEAR_M,
                                                  STALL_CLEAR_DEG)]
@@ -656,10 +652,16 @@ class AmpHumans:
                     speed = np.linalg.norm(fast, axis=1, keepdims=True)
                     pref[stalled] = np.where(speed > cap[stalled], fast / np.maximum(speed, 1e-9) * cap[stalled], fast)
                 if crawl.size:  # along the A* path at STALL_PACE x v_pref
-                    wp = next_waypoints(crawl, pos)
+                    for j in crawl:
+                        wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD,
+                                                       visible[j])
+                    wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in crawl])
                     pref[crawl] = preferred_velocity(pos[crawl], wp, goal[crawl], STALL_PACE * v_pref[crawl])
             else:
-                wp = next_waypoints(range(self.n), pos)  # along the A* path, as the env does for physics pedestrians
+                for j in range(self.n):  # advance along the A* path, as the env does for physics pedestrians
+                    wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD,
+                                                   visible[j])
+                wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in range(self.n)])
                 pref = preferred_velocity(pos, wp, goal, v_pref)
             # yields in progress shape the rollout ahead, and so do the door turns, at the rolled-out positions
             pref = env.crowd_conventions(pref, env.sim_time + k * PLAN_DT, pos, v_pref)
