@@ -141,14 +141,6 @@ STALL_NARROW_REACH = 0.0
 # for them, and a faster target would walk it into them. 0 = everywhere.
 STALL_CLEAR_M = 0.0
 STALL_CLEAR_DEG = 60.0
-# A wait that never ends: a body that has stood for STALL_CRAWL_S seconds while its diffusion plan crawls (slower
-# than STALL_MIN_PLAN_SPEED over STALL_PLAN_S, which the warp leaves alone) walks its A* path in the rollout instead,
-# at STALL_PACE x its preferred speed (as social-force targets do), unless someone (or a robot) stands within
-# STALL_CRAWL_CLEAR_M ahead of it toward the path's waypoint (within STALL_CLEAR_DEG). A person stuck this way in the
-# held-out bottleneck stood for 100 s on a 0.02 m/s plan with nobody within 1.4 m (docs/crowd.md, "Why the
-# bottleneck loses"). 0 = off; independent of STALL_WARP_S.
-STALL_CRAWL_S = 0.0
-STALL_CRAWL_CLEAR_M = 1.0
 
 
 # A physics body is pushed and swerves: it can pass a waypoint of its A* path farther than the
@@ -512,7 +504,7 @@ class AmpHumans:
         self.k_prog = np.zeros(self.n, dtype=int)  # index of each person's current target point
         self.lag_all = env.diffusion is not None or LAG_LIMIT_RULES  # every target held to LAG_LIMIT_S (progress_index)
         self.fallen = np.zeros(self.n, dtype=bool)
-        self.still_s = np.zeros(self.n)  # how long each body has stood (speed < STALL_SPEED): STALL_WARP_S, STALL_CRAWL_S
+        self.still_s = np.zeros(self.n)  # how long each body has stood (speed < STALL_SPEED), for STALL_WARP_S
         self.stance = np.zeros(self.n)  # running mean of foot_split (STANCE_TAU_S), updated by task_reward
         wall = env.config.amp_wall_strength
         self.a_wall = float(SFM_A_WALL if wall is None else wall)  # A_wall of the target rollouts
@@ -620,21 +612,6 @@ class AmpHumans:
                     others = np.concatenate([pos, r_pos]) if len(r_pos) else pos
                     warp = np.where(blocked_ahead(pos[stalled], to_plan, others, STALL_CLEAR_M, STALL_CLEAR_DEG),
                                     1.0, warp)
-            crawl = np.flatnonzero((self.still_s >= STALL_CRAWL_S) & (v_pref > 0.0)) if STALL_CRAWL_S > 0 \
-                else np.zeros(0, dtype=int)
-            if crawl.size:  # bodies that have stood long on a crawling plan, with a free way along their A* path
-                t0 = env.sim_time
-                crawl_speed = np.linalg.norm(diffusion._plans_at(t0 + STALL_PLAN_S)[crawl, 0]
-                                             - diffusion._plans_at(t0)[crawl, 0], axis=1) / STALL_PLAN_S
-                crawl = crawl[crawl_speed <= STALL_MIN_PLAN_SPEED]
-                for j in crawl:
-                    wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD,
-                                                   visible[j])
-                if crawl.size:
-                    wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in crawl])
-                    others = np.concatenate([pos, r_pos]) if len(r_pos) else pos
-                    crawl = crawl[~blocked_ahead(pos[crawl], wp - pos[crawl], others, STALL_CRAWL_CLEAR_M,
-                                                 STALL_CLEAR_DEG)]
         out = np.empty((self.n, steps + 1, 2))
         out[:, 0] = pos
         prev_vel = vel
@@ -651,12 +628,6 @@ class AmpHumans:
                     fast = (ahead - pos[stalled]) / look
                     speed = np.linalg.norm(fast, axis=1, keepdims=True)
                     pref[stalled] = np.where(speed > cap[stalled], fast / np.maximum(speed, 1e-9) * cap[stalled], fast)
-                if crawl.size:  # along the A* path at STALL_PACE x v_pref
-                    for j in crawl:
-                        wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD,
-                                                       visible[j])
-                    wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in crawl])
-                    pref[crawl] = preferred_velocity(pos[crawl], wp, goal[crawl], STALL_PACE * v_pref[crawl])
             else:
                 for j in range(self.n):  # advance along the A* path, as the env does for physics pedestrians
                     wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD,
@@ -732,9 +703,9 @@ class AmpHumans:
         self.t += 1
         k_time = self.t - self.plan_t
         held = self.lag_all | (START_LAG & self.starting)  # whose target waits for the body
-        if held.any() or STALL_WARP_S > 0 or STALL_CRAWL_S > 0:
+        if held.any() or STALL_WARP_S > 0:
             pos, _, vel, _ = self.planar()
-            if STALL_WARP_S > 0 or STALL_CRAWL_S > 0:
+            if STALL_WARP_S > 0:
                 speed = np.linalg.norm(vel, axis=1)
                 self.still_s = np.where(speed < STALL_SPEED, self.still_s + 1.0 / CONTROL_HZ, 0.0)
             if held.any():
