@@ -602,16 +602,15 @@ class AmpHumans:
                 else np.zeros(0, dtype=int)
             if stalled.size:  # how much faster than its own pace each stalled person walks its plan
                 t0 = env.sim_time
-                plan_speed = np.linalg.norm(diffusion._plans_at(t0 + STALL_PLAN_S)[stalled, 0]
-                                            - diffusion._plans_at(t0)[stalled, 0], axis=1) / STALL_PLAN_S
+                later = diffusion._plans_at(t0 + STALL_PLAN_S)[stalled, 0]  # each plan's point STALL_PLAN_S ahead
+                plan_speed = np.linalg.norm(later - diffusion._plans_at(t0)[stalled, 0], axis=1) / STALL_PLAN_S
                 warp = stall_warp(plan_speed, v_pref[stalled])
                 if STALL_NARROW_REACH > 0 and narrow is not None:  # not where the path passes a narrow door
                     near = near_narrow([narrow[j][0] for j in stalled], pos[stalled], STALL_NARROW_REACH)
                     warp = np.where(near, 1.0, warp)
                 if STALL_CLEAR_M > 0:  # not where someone stands just ahead, toward the plan
-                    to_plan = diffusion._plans_at(t0 + STALL_PLAN_S)[stalled, 0] - pos[stalled]
                     others = np.concatenate([pos, r_pos]) if len(r_pos) else pos
-                    warp = np.where(blocked_ahead(pos[stalled], to_plan, others, STALL_CLEAR_M, STALL_CLEAR_DEG),
+                    warp = np.where(blocked_ahead(pos[stalled], later - pos[stalled], others, STALL_CLEAR_M, STALL_CLEAR_DEG),
                                     1.0, warp)
         out = np.empty((self.n, steps + 1, 2))
         out[:, 0] = pos
