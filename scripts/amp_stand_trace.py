@@ -28,7 +28,8 @@ the standing samples by it: ``behind`` (more than 90 degrees off), ``side`` (45-
 distance of those points from a standing body (``target_points_m``; the controller walks off slowly, or not at all,
 toward slow targets behind it: scripts/amp_slow_target_probe.py). ``--const NAME=VALUE`` sets an upper-case numeric
 or boolean constant of ``navzoo.envs.amp_humans`` for the run (e.g. ``--const STALL_WARP_S=1.0``). A diagnostic: the
-counts depend on the seed, and it says where person-time goes, not why a policy acts.
+counts depend on the seed, and it says where person-time goes, not why a policy acts. ``--resummarize TRACE.json``
+prints the summary of an earlier trace's samples again, from ``--after`` seconds on and of ``--person`` only.
 """
 
 from __future__ import annotations
@@ -147,10 +148,27 @@ def summarize(samples: list[dict]) -> dict:
                      for k, test in facing.items()}
     out["facing"]["target_points_m"] = (float(np.mean([x.get("target_points_m", np.nan) for x in stand]))
                                         if stand else float("nan"))
+    out["standing_medians"] = {k: float(np.median([x[k] for x in stand])) if stand else float("nan")
+                               for k in ("target_speed", "nearest_m")}
     out["walls"] = {"contact_share": len(wall) / n if n else 0.0,
                     "passing": len(passing) / n if n else 0.0, "alone": (len(wall) - len(passing)) / n if n else 0.0,
                     "standing": sum(s["cause"] is not None for s in wall) / n if n else 0.0}
     return out
+
+
+def load_trace(path: str) -> dict:
+    """An earlier trace (an ``--out`` file), plain or gzipped (``.gz``, as the traces kept under docs/results)."""
+    if path.endswith(".gz"):
+        import gzip
+
+        with gzip.open(path, "rt") as f:
+            return json.load(f)
+    return json.loads(Path(path).read_text())
+
+
+def window(samples: list[dict], after: float | None = None, people: list[int] | None = None) -> list[dict]:
+    """The samples from ``after`` seconds on, of the persons ``people`` (None: all)."""
+    return [s for s in samples if (after is None or s["t"] >= after) and (people is None or s["id"] in people)]
 
 
 def plot(result: dict, out: str) -> None:
@@ -221,13 +239,27 @@ def main() -> None:
                     help="NavConfig field for the run, repeatable (e.g. --set amp_wall_strength=0.3)")
     ap.add_argument("--const", action="append", default=[], metavar="NAME=VALUE",
                     help="upper-case numeric or boolean constant of navzoo.envs.amp_humans, repeatable")
-    ap.add_argument("--out", required=True, help="JSON result (samples and summary)")
+    ap.add_argument("--out", default=None, help="JSON result (samples and summary)")
+    ap.add_argument("--resummarize", default=None, metavar="TRACE.json",
+                    help="print the summary of an earlier trace's samples (with --after, --person) and stop")
+    ap.add_argument("--after", type=float, default=None, help="with --resummarize: only samples from this time (s)")
+    ap.add_argument("--person", default=None, help="with --resummarize: only these persons (comma-separated)")
     ap.add_argument("--plot", default=None, help="PNG top view of the standing samples")
     ap.add_argument("--plot-contacts", nargs="+", default=None, metavar="TRACE.json",
                     help="only draw the wall contacts of earlier traces (--out files), side by side, into --out (PNG)")
     args = ap.parse_args()
+    if args.resummarize:
+        try:
+            people = [int(x) for x in args.person.split(",")] if args.person else None
+        except ValueError:
+            ap.error(f"--person {args.person!r}: expected comma-separated person numbers")
+        samples = window(load_trace(args.resummarize)["samples"], args.after, people)
+        print(json.dumps(summarize(samples), indent=1))
+        return
+    if args.out is None:
+        ap.error("--out is required")
     if args.plot_contacts:
-        plot_contacts([json.loads(Path(f).read_text()) for f in args.plot_contacts], args.out)
+        plot_contacts([load_trace(f) for f in args.plot_contacts], args.out)
         return
     if args.people < 1 or args.seconds <= 0 or args.every <= 0 or args.still <= 0:
         ap.error("--people, --seconds, --every and --still must be positive")

@@ -76,3 +76,15 @@ def test_a_short_trace_of_physics_pedestrians(tmp_path):
     assert (tmp_path / "t.png").stat().st_size > 1000
     st.plot_contacts([r, r], str(tmp_path / "c.png"))
     assert (tmp_path / "c.png").stat().st_size > 1000
+
+
+def test_a_window_of_samples_is_summarized_again():
+    samples = [dict(_sample(target_speed=0.02, nearest_m=1.4), t=150.0, id=5, cause="target stands", narrow=True),
+               dict(_sample(target_speed=0.5), t=50.0, id=5, cause=None, narrow=False),
+               dict(_sample(target_speed=0.1, nearest_m=0.6), t=150.0, id=2, cause="person near", narrow=False)]
+    late = st.window(samples, after=100.0)
+    assert [s["id"] for s in late] == [5, 2]
+    assert st.window(samples, after=100.0, people=[5]) == samples[:1]
+    s = st.summarize(st.window(samples, people=[5]))
+    assert s["standing_share"] == pytest.approx(0.5)
+    assert s["standing_medians"] == {"target_speed": pytest.approx(0.02), "nearest_m": pytest.approx(1.4)}
