@@ -9,7 +9,8 @@ gone 1 m, its heading error, and whether it fell:
     python scripts/amp_slow_target_probe.py --speeds 0.2,0.3,0.45,0.6,0.8,1.0 --bearings 0,45,90,135,180 \\
         --json docs/results/stall_warp/slow_target_probe_vm.json
 
-About 1.5 s per (speed, bearing) pair on a 2-core VM.
+About 1.5 s per (speed, bearing) pair on a 2-core VM. ``--summary A.json B.json ...`` pools earlier files (one per
+``--seed``, say) per speed and bearing.
 """
 
 from __future__ import annotations
@@ -71,6 +72,28 @@ def probe(speed: float, bearing_deg: float, seconds: float = 12.0, seed: int = 0
             "heading_error_deg": round(float(np.degrees(heading_error)), 1), "fell": fell}
 
 
+def summary(files: list[str]) -> list[dict]:
+    """Rows of several ``--json`` files (e.g. one per probe seed) pooled per target speed and bearing: the mean
+    distance gone, how many runs went 1 m, and how many fell; then per speed over every bearing (``bearing_deg``
+    None)."""
+    cells: dict[tuple, list[dict]] = {}
+    for f in files:
+        for row in json.loads(Path(f).read_text())["rows"]:
+            cells.setdefault((row["speed"], row["bearing_deg"]), []).append(row)
+    if not cells:
+        raise ValueError(f"no probe rows in {files}")
+
+    def pooled(speed: float, bearing: float | None, rows: list[dict]) -> dict:
+        return {"speed": speed, "bearing_deg": bearing, "runs": len(rows),
+                "mean_along_m": round(float(np.mean([r["along_m"] for r in rows])), 3),
+                "reached_1m": sum(r["time_to_1m_s"] is not None for r in rows), "fell": sum(r["fell"] for r in rows)}
+
+    out = [pooled(v, b, rows) for (v, b), rows in sorted(cells.items())]
+    for v in sorted({v for v, _ in cells}):
+        out.append(pooled(v, None, [r for (s, _), rows in cells.items() if s == v for r in rows]))
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--speeds", default="0.3,0.6,1.0", help="target speeds (m/s), comma-separated")
@@ -79,7 +102,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--policy", default=None, help="exported AMP policy folder (default: the shipped one)")
     parser.add_argument("--json", default=None, help="also write the rows here")
+    parser.add_argument("--summary", nargs="+", default=None, metavar="JSON",
+                        help="pool the rows of earlier --json files per speed and bearing, print them and stop")
     args = parser.parse_args(argv)
+    if args.summary:
+        try:
+            rows = summary(args.summary)
+        except (OSError, ValueError, KeyError) as e:
+            raise SystemExit(f"--summary: {e}") from None
+        for r in rows:
+            where = "every bearing" if r["bearing_deg"] is None else f"{r['bearing_deg']:5.0f} deg off"
+            print(f"target {r['speed']:.2f} m/s, {where}: {r['mean_along_m']:.2f} m on average over {r['runs']} runs, "
+                  f"{r['reached_1m']} went 1 m, {r['fell']} fell")
+        return 0
     speeds, bearings = _floats(args.speeds, "--speeds"), _floats(args.bearings, "--bearings")
     if any(v <= 0 for v in speeds) or args.seconds <= 0:
         raise SystemExit("--speeds and --seconds must be positive")

@@ -134,3 +134,20 @@ def test_slow_target_probe_writes_its_rows(tmp_path):
     assert 1.0 < row["along_m"] < 4.0 and row["time_to_1m_s"] is not None  # it walks off with a 1 m/s target
     with pytest.raises(SystemExit, match="positive"):
         probe.main(["--speeds", "0", "--bearings", "0"])
+
+
+def test_slow_target_probe_pools_files_per_speed_and_bearing(tmp_path):
+    probe = load_script("amp_slow_target_probe")
+
+    def row(speed, bearing, along, t1, fell=False):
+        return {"speed": speed, "bearing_deg": bearing, "along_m": along, "time_to_1m_s": t1, "fell": fell}
+
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    a.write_text(json.dumps({"rows": [row(0.2, 0.0, 1.0, 5.0), row(0.2, 90.0, 0.2, None)]}))
+    b.write_text(json.dumps({"rows": [row(0.2, 0.0, 2.0, 4.0), row(0.2, 90.0, 0.4, None, fell=True)]}))
+    rows = probe.summary([str(a), str(b)])
+    assert rows[0] == {"speed": 0.2, "bearing_deg": 0.0, "runs": 2, "mean_along_m": 1.5, "reached_1m": 2, "fell": 0}
+    assert rows[1]["mean_along_m"] == pytest.approx(0.3) and rows[1]["reached_1m"] == 0 and rows[1]["fell"] == 1
+    assert rows[2] == {"speed": 0.2, "bearing_deg": None, "runs": 4, "mean_along_m": 0.9, "reached_1m": 2, "fell": 1}
+    with pytest.raises(SystemExit, match="--summary"):
+        probe.main(["--summary", str(tmp_path / "missing.json")])
