@@ -593,6 +593,17 @@ class AmpHumans:
         tol = env.config.waypoint_tolerance
         steps = int(np.ceil(self.horizon / PLAN_DT))
         diffusion = env.diffusion
+        # what walks the rollouts toward diffusion plans (NavConfig.diffusion_walker): social force, or ORCA with
+        # short horizons ("orca"), or that ORCA with social force for the people it holds still ("hybrid", a
+        # StallSwitch of its own in every rollout, on the rollout's clock)
+        walker = env.config.diffusion_walker if diffusion is not None else "sfm"
+        switch = None
+        if walker != "sfm":
+            from navzoo.agents.diffusion.crowd import ORCA_WALKER, StallSwitch
+
+            switch = StallSwitch(self.n) if walker == "hybrid" else None
+            orca_rad = env.radius[h] + PLAN_MARGIN
+            orca_max = np.concatenate([vmax, np.full(robots.size, env.config.robot.max_speed)])
         if diffusion is not None:
             # The sampled plans give the direction and pace (as for kinematic diffusion pedestrians);
             # social force rolls them out from the bodies, so bodies keep their distance.
@@ -643,9 +654,22 @@ class AmpHumans:
                 if len(self.corners):
                     pref = corner_steer(pos, pref, self.corners, wall_rad, self.corner_margin, self.a_wall,
                                         sf_params.B_wall, sf_params.tau)
-                vel = social_force_velocities(pos, vel, pref, sf_rad, vmax, PLAN_DT, sf_params, env.segments,
-                                              others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
-                                              segment_groups=env.segment_groups, wall_radius=wall_rad)
+                if walker == "sfm":
+                    vel = social_force_velocities(pos, vel, pref, sf_rad, vmax, PLAN_DT, sf_params, env.segments,
+                                                  others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
+                                                  segment_groups=env.segment_groups, wall_radius=wall_rad)
+                else:
+                    v_new = orca_velocities(np.concatenate([pos, o_pos]), np.concatenate([vel, r_vel]),
+                                            np.concatenate([pref, r_vel]), np.concatenate([orca_rad, r_rad]),
+                                            orca_max, PLAN_DT, ORCA_WALKER, env.segments, n_active=self.n)
+                    if switch is not None:
+                        use = switch.update(k * PLAN_DT, PLAN_DT, v_new, pref)
+                        if use.any():
+                            v_new[use] = social_force_velocities(
+                                pos, vel, pref, sf_rad, vmax, PLAN_DT, sf_params, env.segments, others_pos=o_pos,
+                                others_vel=r_vel, others_radius=r_rad, segment_groups=env.segment_groups,
+                                wall_radius=wall_rad)[use]
+                    vel = v_new
             else:
                 vel = orca_velocities(np.concatenate([pos, o_pos]), np.concatenate([vel, r_vel]),
                                       np.concatenate([pref, r_vel]), np.concatenate([rad, r_rad]),

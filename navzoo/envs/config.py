@@ -48,13 +48,14 @@ class NavConfig:
             ``$NAVZOO_DIFFUSION_MODEL`` if set, else the shipped ``policies/trajectory_diffusion``).
         diffusion_samples: ``crowd_model="diffusion"``: futures sampled per person and plan (the one
             of lowest guidance cost is walked).
-        diffusion_walker: ``crowd_model="diffusion"`` with kinematic bodies: what carries each body along its plan
+        diffusion_walker: ``crowd_model="diffusion"``: what carries each kinematic body along its plan
             between the plans' points and keeps it off the others and the walls: ``"sfm"`` (social force, as the
             rule-based crowd) or ``"orca"`` (ORCA with short horizons,
             :data:`navzoo.agents.diffusion.crowd.ORCA_WALKER`: smoother and faster in crowds, docs/crowd.md
             "An ORCA walker") or ``"hybrid"`` (that ORCA, and social force for the people it holds still,
             :class:`navzoo.agents.diffusion.crowd.StallSwitch`: no jams in doors, docs/crowd.md "A hybrid walker").
-            Physics (AMP) bodies follow their own target rollouts and ignore it.
+            With physics (AMP) bodies it walks their target rollouts toward the plans the same way (``"hybrid"``:
+            a switch of its own in every rollout; docs/crowd.md, "Walkers for the physics bodies' targets").
         replay_scene: ``crowd_model="replay"``: the recording to play (``"eth"``, ``"univ"``,
             ``"zara1"``, ``"zara3"``, ``"uni_examples"``; ``"hotel"``, ``"zara2"`` where their files
             exist). ``None`` = taken from ``scene="replay_<recording>"``. With the default ``scene``,
