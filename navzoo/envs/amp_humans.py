@@ -168,6 +168,9 @@ SKIP_PASSED_WAYPOINTS = False
 # with social-force targets but falls 0.012 -> 0.039 and agent contacts 0.085 -> 0.218, and 0.659 -> 0.544
 # with diffusion targets.
 KEEP_APART = False
+# m added to each person's radius when ORCA walks the rollouts toward diffusion plans (NavConfig.diffusion_walker
+# "orca" or "hybrid"): ORCA lets two discs pass just touching, so this is half the room two passing bodies keep.
+ORCA_ROLLOUT_MARGIN = PLAN_MARGIN
 # PASS_MARGIN = True keeps PLAN_MARGIN only between people who pass one another: the rollouts use the bare
 # radii, and a pair's contact distance grows by 2 x PLAN_MARGIN x min(1, relative speed / PASS_SPEED)
 # (SocialForceParams.pass_margin). People walking in one direction together (a corridor's lane, a queue)
@@ -602,7 +605,7 @@ class AmpHumans:
             from navzoo.agents.diffusion.crowd import ORCA_WALKER, StallSwitch
 
             switch = StallSwitch(self.n) if walker == "hybrid" else None
-            orca_rad = env.radius[h] + PLAN_MARGIN
+            orca_rad = env.radius[h] + ORCA_ROLLOUT_MARGIN
             orca_max = np.concatenate([vmax, np.full(robots.size, env.config.robot.max_speed)])
         if diffusion is not None:
             # The sampled plans give the direction and pace (as for kinematic diffusion pedestrians);
