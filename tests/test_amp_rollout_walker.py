@@ -48,3 +48,20 @@ def test_orca_walked_targets_keep_the_planning_discs_apart(walker, monkeypatch):
     mid = 0.5 * (pos[0] + pos[1])
     passed = [np.dot(paths[j, -1] - mid, pos[j] - mid) < 0 for j in range(2)]
     assert all(passed)
+
+
+def test_a_stronger_keep_right_gain_turns_the_social_force_rollouts_aside_earlier(monkeypatch):
+    def meeting(bias: float) -> tuple[int, float]:
+        """When the first body's rollout is 0.2 m off the line between the two (control step; -1: never), and
+        how close the two rollouts come."""
+        monkeypatch.setattr(amp_humans, "SFM_SIDE_BIAS", bias)
+        paths, pos = _meeting_rollouts("sfm", monkeypatch)
+        axis = (pos[1] - pos[0]) / np.linalg.norm(pos[1] - pos[0])
+        off = np.abs((paths[0] - pos[0]) @ np.array([-axis[1], axis[0]]))
+        aside = np.flatnonzero(off > 0.2)
+        return (int(aside[0]) if aside.size else -1), float(np.linalg.norm(paths[0] - paths[1], axis=1).min())
+
+    assert amp_humans.SFM_SIDE_BIAS == 0.1  # the kinematic crowd's gain, the default
+    (t0, gap0), (t1, gap1), (t4, gap4) = meeting(0.0), meeting(0.1), meeting(0.4)
+    assert t0 == -1  # no tie-break: a perfectly head-on pair brakes and stands face to face
+    assert 0 < t4 < t1 and gap4 > gap1 > gap0  # the stronger gain steps aside earlier and passes wider
