@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from navzoo.envs import amp_humans
+from tests.fixed_plans import straight_plans
 
 
 def _meeting_rollouts(walker: str, monkeypatch) -> tuple[np.ndarray, np.ndarray]:
@@ -20,14 +21,7 @@ def _meeting_rollouts(walker: str, monkeypatch) -> tuple[np.ndarray, np.ndarray]
     pos = amp.planar()[0]
     toward = pos[::-1] - pos
     toward /= np.linalg.norm(toward, axis=1, keepdims=True)
-    times = np.arange(crowd.plan.shape[1]) * 0.4
-
-    def through(env_, who=None):
-        crowd.plan = pos[:, None] + 1.0 * times[None, :, None] * toward[:, None]
-        crowd.plan_t0 = np.full(2, env_.sim_time)
-        return crowd.plan
-
-    monkeypatch.setattr(crowd, "plan_now", through)
+    straight_plans(monkeypatch, crowd, pos, 1.0 * toward)
     amp.plan_all()
     paths = amp.paths.copy()
     env.close()

@@ -10,6 +10,7 @@ import pytest
 
 from navzoo.envs import amp_humans
 from navzoo.envs.amp_humans import blocked_ahead, near_narrow, stall_warp
+from tests.fixed_plans import straight_plans
 from tests.script_modules import load_script
 
 
@@ -88,14 +89,7 @@ def test_a_stalled_body_gets_a_target_that_walks_its_slow_plan_faster(monkeypatc
     goal_dir = env.goal[env.n_robots:] - pos
     goal_dir /= np.linalg.norm(goal_dir, axis=1, keepdims=True)
     # slow plans: 0.2 m/s from each body toward its goal, for every later replan of this test too
-    times = np.arange(crowd.plan.shape[1]) * 0.4
-
-    def slow_plan(env_, who=None):
-        crowd.plan = pos[:, None] + 0.2 * times[None, :, None] * goal_dir[:, None]
-        crowd.plan_t0 = np.full(2, env_.sim_time)
-        return crowd.plan
-
-    monkeypatch.setattr(crowd, "plan_now", slow_plan)
+    straight_plans(monkeypatch, crowd, pos, 0.2 * goal_dir)
     reach = {}
     for on in (False, True):
         monkeypatch.setattr(amp_humans, "STALL_WARP_S", 1.0 if on else 0.0)

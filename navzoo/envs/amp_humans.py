@@ -631,6 +631,11 @@ class AmpHumans:
                     others = np.concatenate([pos, r_pos]) if len(r_pos) else pos
                     warp = np.where(blocked_ahead(pos[stalled], later - pos[stalled], others, STALL_CLEAR_M, STALL_CLEAR_DEG),
                                     1.0, warp)
+        def social_force(pos, vel, pref, o_pos, wall_rad):  # one social-force step of the rollout
+            return social_force_velocities(pos, vel, pref, sf_rad, vmax, PLAN_DT, sf_params, env.segments,
+                                           others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
+                                           segment_groups=env.segment_groups, wall_radius=wall_rad)
+
         out = np.empty((self.n, steps + 1, 2))
         out[:, 0] = pos
         prev_vel = vel
@@ -663,20 +668,14 @@ class AmpHumans:
                     pref = corner_steer(pos, pref, self.corners, wall_rad, self.corner_margin, self.a_wall,
                                         sf_params.B_wall, sf_params.tau)
                 if walker == "sfm":
-                    vel = social_force_velocities(pos, vel, pref, sf_rad, vmax, PLAN_DT, sf_params, env.segments,
-                                                  others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
-                                                  segment_groups=env.segment_groups, wall_radius=wall_rad)
+                    vel = social_force(pos, vel, pref, o_pos, wall_rad)
                 else:
                     v_new = orca_velocities(np.concatenate([pos, o_pos]), np.concatenate([vel, r_vel]),
                                             np.concatenate([pref, r_vel]), np.concatenate([orca_rad, r_rad]),
                                             orca_max, PLAN_DT, ORCA_WALKER, env.segments, n_active=self.n)
-                    if switch is not None:
-                        use = switch.update(k * PLAN_DT, PLAN_DT, v_new, pref)
-                        if use.any():
-                            v_new[use] = social_force_velocities(
-                                pos, vel, pref, sf_rad, vmax, PLAN_DT, sf_params, env.segments, others_pos=o_pos,
-                                others_vel=r_vel, others_radius=r_rad, segment_groups=env.segment_groups,
-                                wall_radius=wall_rad)[use]
+                    use = switch.update(k * PLAN_DT, PLAN_DT, v_new, pref) if switch is not None else None
+                    if use is not None and use.any():  # the hybrid: social force for those ORCA holds still
+                        v_new[use] = social_force(pos, vel, pref, o_pos, wall_rad)[use]
                     vel = v_new
             else:
                 vel = orca_velocities(np.concatenate([pos, o_pos]), np.concatenate([vel, r_vel]),
