@@ -1,7 +1,7 @@
 """What a measurement ran on: the CPU's model name and the versions of the packages that compute its floats.
 
 Runs with physics pedestrians or a diffusion crowd repeat trip for trip only where the floating-point results are
-the same. Two installations of the same navzoo on the same VM drew other trips (docs/pedestrians.md, "The
+the same. Two installations of the same navzoo on the same VM drew other trips (docs/pedestrians_log.md, "The
 protocol's noise"), and CPU kinds may differ too. So result files record the CPU model and the numeric packages'
 versions next to their numbers. This module has no heavy imports, so the training, study and benchmark code can
 all use it.

@@ -8,7 +8,7 @@ scene weights.
 have run on different numbers of seeds; each scene is compared on the seeds that both settings ran. The pooled rates
 weight each scene by its share of A's trips (per limit) or goal trips (per goal) on ``--weight-seeds``, the seeds that
 every scene ran, so that a scene run on more seeds does not weigh more. Paired: the mean difference B - A in
-successes per scene run, its standard error, and the seeds where B or A is ahead (docs/crowd.md, "Sixteen seeds").
+successes per scene run, its standard error, and the seeds where B or A is ahead (docs/crowd_log.md, "Sixteen seeds").
 With ``--by-seed``, each seed's scene runs are pooled instead and the settings compared seed by seed. ``--json`` also
 gives each scene's successes seed by seed.
 """

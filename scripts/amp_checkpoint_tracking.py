@@ -13,7 +13,7 @@ without obstacle rays, boxes and paired walkers for one with them, so compare li
         training/amp_scratch git:0ccd479:training/amp git:3ea0b4b:training/amp \\
         training/amp_scratch/policies/policy_00001059 training/amp_scratch/policies/policy_00001478
 
-Or, with ``--protocol stance``, the split stance (docs/pedestrians.md, "Where the realism gap lies") of any
+Or, with ``--protocol stance``, the split stance (docs/pedestrians_log.md, "Where the realism gap lies") of any
 checkpoint, with or without obstacle rays: the whole clips are tracked as with ``tracking_full`` and the poses of
 the standing bodies (15 keypoints, root-centred, heading-aligned, in spine lengths, as the realism metrics) are
 compared with the clips': the mean walking pose (root speed 0.9 m/s and more) minus the clips' mean walking pose

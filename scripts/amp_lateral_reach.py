@@ -1,7 +1,7 @@
 """How far the hands and feet of AMP pedestrians reach sideways, by walking speed, against the reference clips.
 
 Most wall-contact events of the physics pedestrians begin with the body nearly still, a hand's or a foot's swing
-from an obstacle (docs/pedestrians.md, "Where the bodies touch the walls"). This script asks whether the
+from an obstacle (docs/pedestrians_log.md, "Where the bodies touch the walls"). This script asks whether the
 controller's limbs reach further sideways than people's do at the same speed. For every sample it takes, in the
 body's heading frame, the largest sideways offset of the two hands and of the two feet from the pelvis (links'
 centres of mass, ``features.KEY_BODY_NAMES``), and pools the samples in speed bands of the pelvis's planar speed:

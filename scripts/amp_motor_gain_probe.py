@@ -1,7 +1,7 @@
 """How the position gain of the joint motors shapes what the AMP discriminator sees (no policy involved).
 
 The physics pedestrians' joints are PyBullet ``POSITION_CONTROL`` motors with ``positionGain`` 1 (remove the
-whole position error in one 120 Hz substep, within the torque limits). docs/pedestrians.md ("What the
+whole position error in one 120 Hz substep, within the torque limits). docs/pedestrians_log.md ("What the
 discriminator reads") found that with this gain the policy's exploration noise (sigma = exp(-2.9) in action
 units, fixed) turns into joint-velocity jitter of 2.6x the clips' spread, which the discriminator reads instead
 of the poses. A lower gain makes the servo a first-order lag (a fraction ``g`` of the error per substep) that

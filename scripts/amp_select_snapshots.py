@@ -7,7 +7,7 @@ are compared on the protocol itself, in two stages:
 1. **short**: every snapshot, and the baseline policy, for ``--short-seconds`` per scene at
    ``--short-seeds``. At 60 s and one seed this ranked five checkpoints like the full protocol (rank
    correlation 0.9) at a fifteenth of its cost, but could not separate close ones
-   (docs/pedestrians.md, "Can a short protocol choose checkpoints?"), so it only shortlists;
+   (docs/pedestrians_log.md, "Can a short protocol choose checkpoints?"), so it only shortlists;
 2. **full**: the ``--top`` best of stage 1 and the baseline, for ``--full-seconds`` at ``--full-seeds``
    (the reported protocol: 200 s, seeds 0 and 1). The chosen policy is the one with the highest
    stage-2 success; the baseline wins ties.

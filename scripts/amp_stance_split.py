@@ -1,6 +1,6 @@
 """The feet's fore-aft split of AMP pedestrians in crowds, against the reference clips.
 
-Both trained lineages walk with one foot kept ahead of the other (docs/pedestrians.md, "Where the realism gap
+Both trained lineages walk with one foot kept ahead of the other (docs/pedestrians_log.md, "Where the realism gap
 lies"). The optional stance term of the task reward (``NavConfig.amp_stance_reward``) charges the running mean
 (time constant ``features.STANCE_TAU_S``, 1 s) of the right foot's lead over the left along the heading
 (``features.foot_split``). This script measures that split for exported policies walking the following

@@ -4,7 +4,7 @@ Runs ``human_model="amp"`` pedestrians on social-force targets (the following pr
 scene and prints, for the walking steps (body and target faster than 0.8 m/s): the path error by time
 since the last replan, the signed sideways error (+ = target to the body's left), and the angles of the
 body's velocity and of the target's direction against the body's heading. This is the measurement
-behind the steering trim (docs/pedestrians.md, "Steering trim").
+behind the steering trim (docs/pedestrians_log.md, "Steering trim").
 
 ``--plan-velocity`` changes the velocity the target rollouts start from: ``instant`` (the env's: the
 root's velocity now), ``ema`` (exponential average, time constant 0.5 s) or ``mean1s`` (displacement

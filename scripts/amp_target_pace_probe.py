@@ -9,7 +9,7 @@ target stands (< 0.3 m/s), and the body's speed as a share of its target's while
 
     python scripts/amp_target_pace_probe.py --scenes station:3,square_crossing:10,lobby:15 --seconds 60 --out F.json
 
-``--path-in-sight 0`` runs the diffusion crowd as before its ``path_in_sight`` setting (docs/crowd.md, "Path points
+``--path-in-sight 0`` runs the diffusion crowd as before its ``path_in_sight`` setting (docs/crowd_log.md, "Path points
 in sight").
 """
 

@@ -5,7 +5,7 @@
 Until 2026-12-02 every plan's end target (the point of the A* path ``v_pref x 4.8 s`` ahead) was clipped from
 the goal toward the target, to the last point with the body's clearance. That is meant for a target carried past
 the goal. A target still on the path has walls between it and the goal wherever the path bends around them. The
-clip then pulled it across them, toward the goal (docs/crowd.md, "End targets left on the path").
+clip then pulled it across them, toward the goal (docs/crowd_log.md, "End targets left on the path").
 
 The script runs the following protocol's setup (``navzoo.benchmark.pedestrians``, diffusion crowd, seed 0) and
 watches every plan. For each person planned, it notes whether the end target is still on the path or carried past
@@ -16,7 +16,7 @@ than 0.1 m, and the median of those moves (m).
 It also counts the plans whose person is nearer to a point of its path behind a wall than to any point it sees
 (``nearest_hidden``: the nearest path point, searched as ``_ahead_from_nearest`` does, is out of sight by
 ``_in_sight``). Without ``path_in_sight`` those plans are measured from that hidden point, and their path guidance
-pulls into the wall (docs/crowd.md, "Path points in sight"). ``--path-in-sight 0`` runs the crowd as before that
+pulls into the wall (docs/crowd_log.md, "Path points in sight"). ``--path-in-sight 0`` runs the crowd as before that
 setting (``DiffusionCrowd(path_in_sight=False)``).
 """
 

@@ -9,7 +9,7 @@ when there is one. Prints one JSON line per policy and, with ``--out``, draws th
         --label training/amp_scratch=scratch --out /tmp/pose_vs_falls.png
 
 ``--only S`` (repeatable) keeps the sources that contain S; ``--label SOURCE=NAME`` names a point (otherwise
-:func:`short_name`). The plot in docs/ has its own command under it (docs/pedestrians.md, "The cloning weight sets
+:func:`short_name`). The plot in docs/ has its own command under it (docs/pedestrians_log.md, "The cloning weight sets
 pose against falls"), with the ``--only`` selection it shows.
 """
 

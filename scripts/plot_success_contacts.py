@@ -15,7 +15,7 @@ row per scene and seed (``scripts/ablation_scene_weighted.py``'s rule). ``--scen
 scene names joined by commas (:func:`navzoo.benchmark.pedestrians.scene_names`, which refuses unknown names).
 ``--paper SUCCESS,MAP`` (percent) marks the paper's row in the first panel, whose scenes it compares with. Prints one JSON line per setting and panel (``seeds`` the seeds found, ``success`` and
 ``map_contact`` mean and standard error over them, in percent). A setting without rows of a panel's scenes on the
-chosen seeds is an error that names it. The plot in docs/ has its own command under it (docs/pedestrians.md, "Choosing
+chosen seeds is an error that names it. The plot in docs/ has its own command under it (docs/pedestrians_log.md, "Choosing
 the wall settings").
 """
 

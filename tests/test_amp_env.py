@@ -273,7 +273,7 @@ def test_the_optional_stance_reward_charges_the_running_mean_of_the_feet_split_p
     np.testing.assert_allclose(envs[1].amp.stance, mean, atol=1e-9)
     last = [i1[h]["reward/stance"] for h in sorted(r1)]
     np.testing.assert_allclose(last, -np.maximum(0.0, np.abs(mean) - STANCE_FREE_M), atol=1e-9)
-    # the shipped policy keeps its right foot ahead (docs/pedestrians.md, "Where the realism gap lies")
+    # the shipped policy keeps its right foot ahead (docs/pedestrians_log.md, "Where the realism gap lies")
     assert envs[1].amp.stance.mean() > 0.15
     for e in envs:
         e.close()

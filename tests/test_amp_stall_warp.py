@@ -1,5 +1,5 @@
 """Stalled physics pedestrians walk their diffusion plans faster (amp_humans.STALL_WARP_S), and the slow-target probe
-behind docs/pedestrians.md "Slow targets"."""
+behind docs/pedestrians_log.md "Slow targets"."""
 
 from __future__ import annotations
 

@@ -67,7 +67,7 @@ WALL_PLAN_MARGIN = PLAN_MARGIN  # m
 # for 60-80 s, 3 and 7 of its 8 and 11 trips timed out). Near a stretch of its A* path with clearance c
 # (within PASSAGE_REACH of the disc), the wall margin is therefore at most c - radius - DOOR_SLACK
 # (0.9 m doors: 0.05 m; 1.0 m doors and wider keep the full 0.1 m). See graded_wall_radius.
-# Following protocol, 4 seeds (device machine, docs/pedestrians.md "A graded wall margin"): success
+# Following protocol, 4 seeds (device machine, docs/pedestrians_log.md "A graded wall margin"): success
 # 0.551 -> 0.573 with social-force targets and 0.636 -> 0.659 with diffusion targets, higher in every
 # seed; map contacts 0.054 -> 0.069 and 0.088 -> 0.100 of trips. GRADED_WALL_MARGIN = False turns it off.
 GRADED_WALL_MARGIN = True
@@ -79,13 +79,13 @@ PASSAGE_REACH = 1.0  # m
 # diffusion plans against 1.0 m with social-force rollouts, which start from the body and see the others).
 # With diffusion plans the target's current point therefore runs at most LAG_LIMIT_S ahead of the point
 # of the plan nearest to the body (progress_index). 0.15 s and 0.5 s both succeed less with social-force targets
-# (0.630 and 0.641 per limit against 0.711, seeds 0-1, VM; docs/pedestrians.md "How far the target may lead the body").
+# (0.630 and 0.641 per limit against 0.711, seeds 0-1, VM; docs/pedestrians_log.md "How far the target may lead the body").
 LAG_LIMIT_S = 0.3
 # Social-force and ORCA rollouts start from the body at every replan (2 s); without a limit their targets run
 # by time alone. LAG_LIMIT_RULES = True holds them to the same LAG_LIMIT_S lead over the body as diffusion
 # targets, so every target generator meets the controller under one rule (the paper's SFM+AMP against
 # Diffusion+AMP comparison keeps the controller and changes only the generator). On since 2026-12-01
-# (docs/pedestrians.md "One pacing rule for every target generator"): with the pass margin, social-force
+# (docs/pedestrians_log.md "One pacing rule for every target generator"): with the pass margin, social-force
 # targets, success per limit 0.621 -> 0.660 over seeds 0-3 and 0.599 -> 0.678 over seeds 4-5 (higher in all
 # six), per goal 0.674 -> 0.738 and 0.664 -> 0.750, trips off the path 0.124 -> 0.027, timeouts 0.241 ->
 # 0.299, falls 0.014 -> 0.013. Before the pass margin it was level per limit (0.573 -> 0.579, section
@@ -95,21 +95,21 @@ LAG_LIMIT_RULES = True
 # goal behind the person: the body turns around while its target already walks off). START_REPLAN_S > 0
 # replans once more that long after such a replan, from the turned body; 0 = off. START_LAG = True holds a
 # person's target to the LAG_LIMIT_S lead over its body during the first plan of each trip (from the new goal
-# to the next regular replan). Both off: over 4 seeds (docs/pedestrians.md "Pacing social-force targets"),
+# to the next regular replan). Both off: over 4 seeds (docs/pedestrians_log.md "Pacing social-force targets"),
 # per-limit success 0.573 -> 0.533 (START_REPLAN_S 0.7) and 0.561 (START_LAG). START_LAG adds nothing while
 # LAG_LIMIT_RULES is on (the default since 2026-12-01), which holds every plan, the first of a trip too.
 START_REPLAN_S = 0.0
 START_LAG = False
 # Diffusion crowd with physics bodies: the target rollout heads for each plan's point this far ahead, at the
-# plan's pace but at most DIFFUSION_SPEED_CAP times the person's preferred speed (docs/crowd.md "Diffusion
+# plan's pace but at most DIFFUSION_SPEED_CAP times the person's preferred speed (docs/crowd_log.md "Diffusion
 # plans for physics bodies"). 0.8 s (as kinematic diffusion pedestrians look ahead) until 2026-12-01; 0.4 s
 # keeps the targets closer to the plans: following protocol, diffusion targets, success per limit 0.696 ->
 # 0.725 over seeds 0-3 and 0.714 -> 0.732 over held-out seeds 4-5, per goal 0.841 -> 0.859 and 0.856 ->
 # 0.867, agent contacts per goal 0.092 -> 0.073, falls level; 1.6 s: 0.701 -> 0.630 over seeds 0-1
-# (docs/crowd.md "A shorter lookahead for diffusion targets").
+# (docs/crowd_log.md "A shorter lookahead for diffusion targets").
 DIFFUSION_LOOKAHEAD_S = 0.4
 # The cap was 1.3 until 2026-11-28. Targets faster than the person's own pace run away from a body that
-# cannot keep up: over 4 seeds of the following protocol (device machine, docs/crowd.md "A speed cap of 1.0
+# cannot keep up: over 4 seeds of the following protocol (device machine, docs/crowd_log.md "A speed cap of 1.0
 # for diffusion targets", docs/results/diffusion_speed_cap/) caps of
 # 1.3 / 1.15 / 1.0 / 0.9 gave success per goal 0.779 / 0.810 / 0.823 / 0.824, falls 0.023 / 0.012 / 0.006 /
 # 0.004, agent contacts 0.170 / 0.102 / 0.060 / 0.028 and timeouts 0.094 / 0.117 / 0.146 / 0.158; on two
@@ -119,7 +119,7 @@ DIFFUSION_SPEED_CAP = 1.0
 # gets slow plans; its target then creeps (the rollout toward a slow plan, slowed further by a jamb the body stands
 # next to) and the controller does not walk toward a target that slow, least of all one behind it (a lone body
 # follows a straight target at 0.3 m/s only 1 m in 11 s when the target starts 135 degrees off its heading, and from
-# 0.45 m/s on goes 1 m within 4 s whatever the bearing: docs/pedestrians.md, "Slow targets").
+# 0.45 m/s on goes 1 m within 4 s whatever the bearing: docs/pedestrians_log.md, "Slow targets").
 # Bodies stood this way for tens of seconds beside door jambs with the door free. With STALL_WARP_S > 0, a person
 # whose body has stood (planar speed under STALL_SPEED) for that long gets a rollout that walks its plan's path at
 # no less than STALL_PACE x its preferred speed (the plan's time runs faster, by at most STALL_MAX_WARP; the
@@ -127,7 +127,7 @@ DIFFUSION_SPEED_CAP = 1.0
 # plans slower than that are a wait, and stay one). 0 = off. Off: 1.0 s measured level over seeds 0-5 of the
 # following protocol with diffusion targets (device machine; 0.752 per limit either way, the corridor +11 points, the
 # home -10; over eight seeds of the ten held-out scenes +1.7 +- 1.2 points per limit, within noise;
-# docs/crowd.md, "Bodies that stand at doors").
+# docs/crowd_log.md, "Bodies that stand at doors").
 STALL_WARP_S = 0.0
 STALL_SPEED = 0.15  # m/s
 STALL_PACE = 0.6
@@ -155,7 +155,7 @@ WAYPOINT_LOOKAHEAD = 4
 # kept a waypoint at the circle's centre, 3 m behind it, and went back and forth for 20 s). With
 # SKIP_PASSED_WAYPOINTS, physics pedestrians also move past every waypoint they are beyond, along the
 # path, while they can see the next one (advance_waypoint's ``visible``). Off: over 4 seeds of the
-# following protocol (device machine, docs/pedestrians.md "Skipping passed waypoints") success moved by
+# following protocol (device machine, docs/pedestrians_log.md "Skipping passed waypoints") success moved by
 # -6.8 to +9.0 points per seed, pooled 0.573 -> 0.579 with social-force targets and 0.659 -> 0.653 with
 # diffusion targets, with a few more falls: within what the seeds scatter.
 SKIP_PASSED_WAYPOINTS = False
@@ -164,7 +164,7 @@ SKIP_PASSED_WAYPOINTS = False
 # 60 s) the targets then move at 0.59 m/s where the kinematic social-force crowd walks at 0.87
 # (scripts/amp_pace_probe.py). True: the bare radii for the social repulsion and a short-range push that
 # holds the margin (SocialForceParams.keep_apart). Off: over 4 seeds of the following protocol (device
-# machine, docs/pedestrians.md "Keeping people apart without slowing the crowd") success went 0.573 -> 0.611
+# machine, docs/pedestrians_log.md "Keeping people apart without slowing the crowd") success went 0.573 -> 0.611
 # with social-force targets but falls 0.012 -> 0.039 and agent contacts 0.085 -> 0.218, and 0.659 -> 0.544
 # with diffusion targets.
 KEEP_APART = False
@@ -175,7 +175,7 @@ ORCA_ROLLOUT_MARGIN = PLAN_MARGIN
 # radii, and a pair's contact distance grows by 2 x PLAN_MARGIN x min(1, relative speed / PASS_SPEED)
 # (SocialForceParams.pass_margin). People walking in one direction together (a corridor's lane, a queue)
 # keep close as kinematic ones do; people meeting or crossing keep the room their limbs need. On since
-# 2026-12-01 (docs/pedestrians.md "A margin for passing only"): following protocol, social-force targets,
+# 2026-12-01 (docs/pedestrians_log.md "A margin for passing only"): following protocol, social-force targets,
 # success per limit 0.573 -> 0.621 over seeds 0-3 (higher in all four) and 0.537 -> 0.599 over seeds 4-5,
 # falls 0.012 -> 0.014 and agent contacts 0.085 -> 0.127 of trips; diffusion targets 0.680 -> 0.696
 # (seeds 0-3) and 0.693 -> 0.714 (4-5), agent contacts 0.049 -> 0.087 and 0.036 -> 0.059. False: the
@@ -185,11 +185,11 @@ PASS_SPEED = 1.0  # m/s
 # The wall potential strength of the social-force target rollouts (SocialForceParams.A_wall, the kinematic
 # crowd's default 1.0), where NavConfig.amp_wall_strength is None. Kinematic crowds reach 15 % more goals over 18
 # scenes with 0.3 (docs/crowd_models.md, "Softer walls"); the physics rows gain 4-13 points per limit with it and
-# touch walls on about twice as many trips (docs/pedestrians.md, "Softer walls for the target rollouts").
+# touch walls on about twice as many trips (docs/pedestrians_log.md, "Softer walls for the target rollouts").
 SFM_A_WALL = 1.0
 # Softer walls only where people meet: with SFM_WALL_NEAR_RANGE > 0 (m), a person of the rollouts who has another
 # within that distance feels the walls with SFM_A_WALL_NEAR instead (SocialForceParams.wall_near_range). An option,
-# off (docs/pedestrians.md, "Softer walls only where people meet"). With SFM_WALL_NEAR_RAMP > 0 (m) the softer walls
+# off (docs/pedestrians_log.md, "Softer walls only where people meet"). With SFM_WALL_NEAR_RAMP > 0 (m) the softer walls
 # phase in linearly from SFM_WALL_NEAR_RANGE + SFM_WALL_NEAR_RAMP down to SFM_WALL_NEAR_RANGE instead of switching
 # (SocialForceParams.wall_near_ramp; 0 = the switch).
 SFM_WALL_NEAR_RANGE = 0.0
@@ -197,14 +197,14 @@ SFM_A_WALL_NEAR = 0.3
 SFM_WALL_NEAR_RAMP = 0.0
 # The keep-right gain of the social-force target rollouts (SocialForceParams.side_bias, the kinematic crowd's 0.1): a
 # share of the push from someone ahead that turns a person to its right, so that people meeting head-on pass left
-# shoulder to left shoulder. Larger values form lanes earlier in counterflow (docs/crowd.md, "Keeping right").
+# shoulder to left shoulder. Larger values form lanes earlier in counterflow (docs/crowd_log.md, "Keeping right").
 SFM_SIDE_BIAS = 0.1
 # Bodies touch obstacles mostly at exposed corners (door jambs, shelf ends: 65 % of the wall-contact events of
 # social-force + AMP in six protocol scenes, seed 0), with the pelvis 0.29 m from the corner while its target keeps
 # 0.45 m: a body following a target round a corner cuts it (scripts/amp_wall_contact_links.py). CORNER_MARGIN > 0 (m)
 # lets those corners push the target rollouts sideways as walls do at that much more margin (corner_steer), so
 # targets swing wide and centre in doors without being braked. 0 = off; NavConfig.amp_corner_margin overrides.
-# 0.15 m: wall-contact trips 8.8 -> 4.0 %, success 0.701 -> 0.620 (VM, seed 0; docs/pedestrians.md, "Corner steering
+# 0.15 m: wall-contact trips 8.8 -> 4.0 %, success 0.701 -> 0.620 (VM, seed 0; docs/pedestrians_log.md, "Corner steering
 # in the target rollouts"), the same trade as a wider wall margin.
 CORNER_MARGIN = 0.0
 CORNER_REACH = 1.0  # m: corners further than this from a rollout disc are not looked at
@@ -238,7 +238,7 @@ DIFFUSION_TARGET_ACCEL = 0.0
 # The social-force (and ORCA) rollouts of physics pedestrians may go as fast as human_max_speed (2 m/s)
 # when forces push them. With TARGET_SPEED_CAP > 0 they go at most that times the person's preferred speed,
 # as DIFFUSION_SPEED_CAP holds the rollouts toward diffusion plans; 0 = off (human_max_speed only). Off: 1.0
-# left per-limit success level over 4 seeds (0.573 -> 0.575; docs/pedestrians.md "Pacing social-force targets").
+# left per-limit success level over 4 seeds (0.573 -> 0.575; docs/pedestrians_log.md "Pacing social-force targets").
 TARGET_SPEED_CAP = 0.0
 # A physics pedestrian that yields in a bottleneck can hold its wait until the person it yielded to has
 # passed it, for at most this many more seconds (navzoo.agents.yielding, YieldParams.hold_max; 0 = off).

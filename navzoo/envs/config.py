@@ -55,7 +55,7 @@ class NavConfig:
             "An ORCA walker") or ``"hybrid"`` (that ORCA, and social force for the people it holds still,
             :class:`navzoo.agents.diffusion.crowd.StallSwitch`: no jams in doors, docs/crowd.md "A hybrid walker").
             With physics (AMP) bodies it walks their target rollouts toward the plans the same way (``"hybrid"``:
-            a switch of its own in every rollout; docs/crowd.md, "Walkers for the physics bodies' targets").
+            a switch of its own in every rollout; docs/crowd_log.md, "Walkers for the physics bodies' targets").
         replay_scene: ``crowd_model="replay"``: the recording to play (``"eth"``, ``"univ"``,
             ``"zara1"``, ``"zara3"``, ``"uni_examples"``; ``"hotel"``, ``"zara2"`` where their files
             exist). ``None`` = taken from ``scene="replay_<recording>"``. With the default ``scene``,
@@ -105,12 +105,12 @@ class NavConfig:
             preferred speed, clipped to [-1, 1] (0 for fallen or arrived people;
             ``info["reward/path_progress"]``). 0 (default) = the paper's reward, whose tracking term
             follows targets replanned from the body every ``amp_replan_seconds`` and so does not pay for
-            reaching the goal (docs/pedestrians.md, "Run 26").
+            reaching the goal (docs/pedestrians_log.md, "Run 26").
         amp_wall_strength: ``human_model="amp"``: wall potential strength (``SocialForceParams.A_wall``) of the
             social-force rollouts that make the bodies' target trajectories (social-force targets, and the rollouts
             toward diffusion plans); None (default) = ``navzoo.envs.amp_humans.SFM_A_WALL`` (1.0, the kinematic
             crowd's own). 0.3 lets the targets pass nearer walls: more goals, about twice the wall contacts
-            (docs/pedestrians.md, "Softer walls for the target rollouts").
+            (docs/pedestrians_log.md, "Softer walls for the target rollouts").
         amp_wall_near_range: ``human_model="amp"``: with > 0 (m), a person of those target rollouts who has another
             person within this distance (centre to centre) feels the walls with ``amp_wall_near_strength`` instead:
             softer walls only where people meet (``SocialForceParams.wall_near_range``); 0 = off. None (default) =
@@ -120,21 +120,21 @@ class NavConfig:
         amp_wall_near_ramp: with > 0 (m), those softer walls phase in linearly from ``amp_wall_near_range`` + this
             distance down to ``amp_wall_near_range`` instead of switching (``SocialForceParams.wall_near_ramp``);
             None (default) = ``amp_humans.SFM_WALL_NEAR_RAMP`` (0, a switch). Range 1.5 with ramp 1.0 measured in
-            docs/pedestrians.md, "A ramp instead of a switch".
+            docs/pedestrians_log.md, "A ramp instead of a switch".
         amp_wall_margin: ``human_model="amp"``: margin (m) added to a person's radius for the walls of those
             social-force target rollouts (the graded wall margin still shrinks it in narrow passages); None (default) =
             ``navzoo.envs.amp_humans.WALL_PLAN_MARGIN`` (0.1). 0.2 cuts the trips with a wall contact by a third and
-            costs success (docs/pedestrians.md, "A wider wall margin for the target rollouts").
+            costs success (docs/pedestrians_log.md, "A wider wall margin for the target rollouts").
         amp_corner_margin: ``human_model="amp"``: extra margin (m) that the exposed corners of obstacles (door jambs,
             shelf corners: ``Scene.exposed_corners``) keep from a person in those target rollouts, as a sideways push
             only, so a target swings wide round a corner and centres in a door without being braked; None (default) =
             ``navzoo.envs.amp_humans.CORNER_MARGIN`` (0, off). 0.15 halves the trips with a wall contact and costs
-            success as a wider wall margin does (docs/pedestrians.md, "Corner steering in the target rollouts").
+            success as a wider wall margin does (docs/pedestrians_log.md, "Corner steering in the target rollouts").
         amp_sight_clearance: ``human_model="amp"``: the controller sees only the target points that a straight line
             from the pelvis reaches with this clearance (m) from obstacles; the points behind a corner are shown
             continued straight, so the body walks past the corner before it turns
             (``navzoo.envs.amp_humans.sight_waypoints``); None (default) = ``amp_humans.SIGHT_CLEARANCE`` (0, off)
-            (docs/pedestrians.md, "Target points in sight of the body").
+            (docs/pedestrians_log.md, "Target points in sight of the body").
         crowd_wall_strength: wall potential strength (``SocialForceParams.A_wall``) of the social force that moves
             the kinematic crowd (``crowd_model`` "sfm", and the bodies of the "diffusion" crowd between its plans) when
             it runs on :class:`navzoo.agents.crowd.CrowdPolicy` without parameters of its own. 1.0 (default) =
@@ -151,13 +151,13 @@ class NavConfig:
             absolute running mean (time constant ``features.STANCE_TAU_S``, 1 s) of the right foot's fore-aft
             lead over the left foot in the body's heading frame, in metres (``info["reward/stance"]``, logged
             whatever the weight; the mean starts at 0 at each reset). Walking alternates the feet, so the mean stays near 0 (the reference clips: 0.069 m on
-            average); a split stance (one foot kept ahead, docs/pedestrians.md, "Where the realism gap
+            average); a split stance (one foot kept ahead, docs/pedestrians_log.md, "Where the realism gap
             lies") holds it at about 0.5 m. 0 (default) = the paper's reward.
         amp_wall_contact_reward: ``human_model="amp"``: weight of a wall-contact term added to the pedestrians'
             task reward: -1 while any link of the body touches a scene obstacle (the contact of the step's last
             physics step, the one ``info["map_contact"]`` reports), else 0 (``info["reward/wall_contact"]``, logged
             whatever the weight). For training the controller to keep its hands and feet off walls and furniture
-            (docs/pedestrians.md, "A wall-contact term for training"). 0 (default) = the paper's reward.
+            (docs/pedestrians_log.md, "A wall-contact term for training"). 0 (default) = the paper's reward.
         time_limit: episode length (s); ``None`` = the scene's own limit.
         goal_tolerance: a robot reaches its goal when closer than this (m); ``None`` = robot radius
             (CrowdNav's rule, as the paper's reward).

@@ -288,7 +288,7 @@ def test_agent_buffer_sets_the_people_guidance_clearance(model_dir, monkeypatch)
 
 def test_amp_targets_toward_diffusion_plans_keep_to_the_speed_cap(model_dir, monkeypatch):
     """The rollouts toward the plans go at most DIFFUSION_SPEED_CAP x the preferred speed (default 1.0:
-    faster targets run away from the bodies, docs/crowd.md "A speed cap of 1.0 for diffusion targets")."""
+    faster targets run away from the bodies, docs/crowd_log.md "A speed cap of 1.0 for diffusion targets")."""
     from navzoo.envs import amp_humans
 
     assert amp_humans.DIFFUSION_SPEED_CAP == 1.0

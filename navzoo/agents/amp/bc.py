@@ -2,7 +2,7 @@
 
 Why: clip tracking's rotation error compares the body's link orientations with the clip's, frame by frame.
 A clip compared with *itself* 0.2 s later already errs by 0.33 rad and 0.3 s later by 0.43 rad
-(docs/pedestrians.md, "What the rotation error measures"), so the paper's 0.343 rad needs a controller that
+(docs/pedestrians_log.md, "What the rotation error measures"), so the paper's 0.343 rad needs a controller that
 continues the clip's own gait, in phase, from the reference state it starts in. The policies trained from
 random weights adopt a gait of their own within a few control steps (0.48-0.56 rad). This module gives the
 actor that continuation before any reinforcement learning:

@@ -92,7 +92,7 @@ class TrainArgs:
     actor_lr: float = 5e-5
     # log of the fixed action-noise std (AmpConfig.init_log_std; a resumed checkpoint takes the value given here).
     # The position motors follow a new target within a physics substep, so this noise shows up as joint-velocity
-    # jitter that the discriminator reads (docs/pedestrians.md, "What the discriminator reads").
+    # jitter that the discriminator reads (docs/pedestrians_log.md, "What the discriminator reads").
     init_log_std: float = -2.9
     # > 0: export the deterministic policy to <out>/snapshots/policy_<iteration> every that many iterations and
     # at the start, for checkpoint selection on the following protocol (scripts/amp_select_snapshots.py)

@@ -5,7 +5,7 @@
 SRC_CKPT_DIR is a checkpoint directory (``ckpt_*``) or a committed training folder whose state is split in
 ``state.pt.part-*`` files (e.g. ``training/amp_stance``). ``--export`` also writes the widened checkpoint's
 deterministic policy (:func:`navzoo.agents.amp.train.export_from_checkpoint`): a policy that takes the wider
-observation and ignores the new inputs, i.e. where a resumed run with them starts (docs/pedestrians.md, "The
+observation and ignores the new inputs, i.e. where a resumed run with them starts (docs/pedestrians_log.md, "The
 stance run before its obstacle stage").
 
 Used to add the obstacle rays (16 inputs) to a policy trained without them, instead of training from

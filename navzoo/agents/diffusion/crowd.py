@@ -204,7 +204,7 @@ def _ahead_from_nearest(path: np.ndarray, start: int, pos: np.ndarray, distance:
     outside the env's waypoint tolerance and its waypoint index stays behind: measuring from the
     current waypoint would then put the target behind the person. A person beside a wall is often nearer
     to a later leg of its path on the wall's other side than to the leg it walks: measured from there, the
-    targets pull it into the wall (``sight`` keeps them on its side; docs/crowd.md, "Path points in sight").
+    targets pull it into the wall (``sight`` keeps them on its side; docs/crowd_log.md, "Path points in sight").
     With ``sight`` and ``hold_in_sight`` the points also lie no farther along the path than it stays in sight of
     ``pos`` (tested every :data:`SIGHT_STEP` m), or no nearer than ``hold_floor`` m along it: round a corner, the
     next plan goes on. With ``floor_in_sight`` the floor reaches only to a path point that ``pos`` sees again (the
@@ -315,7 +315,7 @@ def _end_targets(env: NavEnv, people: np.ndarray, horizon_s: float, extend: bool
 
     Only such a carried target is clipped. A target still on the path stays there: clipping it from the goal
     would pull it across the walls between the goal and the path (until 2026-12-02 it did, for about half the
-    plans in the home; docs/crowd.md, "End targets left on the path").
+    plans in the home; docs/crowd_log.md, "End targets left on the path").
     """
     ahead = env.v_pref[people] * horizon_s if reach is None else np.asarray(reach, dtype=float)
     target = np.array([_ahead_from_nearest(env.paths[i], env.wp_index[i], env.pos[i], ahead[b],
@@ -371,16 +371,16 @@ class DiffusionCrowd:
         hold_floor_s: held points lie no nearer along the path than the person walks in this many seconds at its
             preferred speed (0: right where the path leaves sight, as from 2026-12-02 to 2026-12-03). 2 s, the
             replan interval: nobody reaches a held point before the next plan, so nobody stops at corners and
-            pillars (docs/crowd.md, "A floor under the held path points").
+            pillars (docs/crowd_log.md, "A floor under the held path points").
         floor_in_sight: the floor reaches only to path points the person sees again (past a pillar), not round the
             jamb of a door or a wall's end, where the path stays hidden and the points stay where it leaves sight
             (:func:`_ahead_from_nearest`); off, the floor applies wherever the path goes (the default
             until 2026-12-03). On by default since then: over 16 seeds it reaches more goals than the plain floor,
-            most in the home and the lobby (docs/crowd.md, "Sixteen seeds").
+            most in the home and the lobby (docs/crowd_log.md, "Sixteen seeds").
         floor_ray: where the path stays hidden up to the floor, the floor's points go on along the line of sight
             through the last path point in sight (through a door, past a wall's end), not along the hidden path
             behind the wall; past a pillar, as ``floor_in_sight`` (:func:`_ahead_from_nearest`). Measured behind
-            both on six seeds, so off (docs/crowd.md, "The floor along the line of sight").
+            both on six seeds, so off (docs/crowd_log.md, "The floor along the line of sight").
         pace_ramp: with > 0 (m/s²), the path guidance's points (and the end target) are spaced by a pace that
             changes from the person's current speed (its last history step) toward its preferred one at this rate
             (:func:`ramped_distances`), instead of the preferred pace from the first step. 0 = off (the default):
