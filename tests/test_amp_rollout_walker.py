@@ -9,12 +9,12 @@ from navzoo.envs import amp_humans
 from tests.fixed_plans import straight_plans
 
 
-def _meeting_rollouts(walker: str, monkeypatch) -> tuple[np.ndarray, np.ndarray]:
+def _meeting_rollouts(walker: str, monkeypatch, **config) -> tuple[np.ndarray, np.ndarray]:
     """Two bodies whose plans lead straight through each other at 1 m/s: their rolled-out target paths."""
     from navzoo.envs.nav_env import NavEnv
 
     env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=2, human_model="amp", crowd_model="diffusion",
-                 diffusion_walker=walker, dt=1 / 30, time_limit=10.0)
+                 diffusion_walker=walker, dt=1 / 30, time_limit=10.0, **config)
     env.reset(seed=0)
     amp, crowd = env.amp, env.diffusion
     crowd.plan_now(env)
@@ -59,3 +59,25 @@ def test_a_stronger_keep_right_gain_turns_the_social_force_rollouts_aside_earlie
     (t0, gap0), (t1, gap1), (t4, gap4) = meeting(0.0), meeting(0.1), meeting(0.4)
     assert t0 == -1  # no tie-break: a perfectly head-on pair brakes and stands face to face
     assert 0 < t4 < t1 and gap4 > gap1 > gap0  # the stronger gain steps aside earlier and passes wider
+
+
+def test_the_keep_right_gain_is_a_config_field(monkeypatch):
+    """``NavConfig.amp_side_bias`` sets the gain of both social-force parameter sets of the target rollouts (None: the
+    module's SFM_SIDE_BIAS) and gives the same rollouts as the constant; bad values are refused by name."""
+    from navzoo.envs.config import NavConfig
+
+    by_field, _ = _meeting_rollouts("sfm", monkeypatch, amp_side_bias=0.4)
+    default, _ = _meeting_rollouts("sfm", monkeypatch)
+    monkeypatch.setattr(amp_humans, "SFM_SIDE_BIAS", 0.4)
+    by_constant, _ = _meeting_rollouts("sfm", monkeypatch)
+    np.testing.assert_allclose(by_field, by_constant)
+    assert not np.allclose(by_field, default)
+    monkeypatch.setattr(amp_humans, "SFM_SIDE_BIAS", 0.1)
+    from navzoo.envs.nav_env import NavEnv
+
+    env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=2, human_model="amp", amp_side_bias=0.25)
+    assert env.amp.sfm.side_bias == env.amp.sfm_keep.side_bias == 0.25
+    env.close()
+    for bad in (-0.1, float("nan"), float("inf"), True, "0.4"):
+        with pytest.raises(ValueError, match="amp_side_bias must be None or a finite number >= 0"):
+            NavConfig(human_model="amp", amp_side_bias=bad)

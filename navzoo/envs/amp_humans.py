@@ -198,6 +198,7 @@ SFM_WALL_NEAR_RAMP = 0.0
 # The keep-right gain of the social-force target rollouts (SocialForceParams.side_bias, the kinematic crowd's 0.1): a
 # share of the push from someone ahead that turns a person to its right, so that people meeting head-on pass left
 # shoulder to left shoulder. Larger values form lanes earlier in counterflow (docs/crowd_log.md, "Keeping right").
+# NavConfig.amp_side_bias overrides.
 SFM_SIDE_BIAS = 0.1
 # Bodies touch obstacles mostly at exposed corners (door jambs, shelf ends: 65 % of the wall-contact events of
 # social-force + AMP in six protocol scenes, seed 0), with the pelvis 0.29 m from the corner while its target keeps
@@ -521,7 +522,8 @@ class AmpHumans:
                 "A_wall_near": (cfg.amp_wall_near_strength, SFM_A_WALL_NEAR),
                 "wall_near_ramp": (cfg.amp_wall_near_ramp, SFM_WALL_NEAR_RAMP)}
         self.walls = {"A_wall": self.a_wall, **{k: float(const if v is None else v) for k, (v, const) in near.items()},
-                      "side_bias": SFM_SIDE_BIAS}  # with the walls, every SocialForceParams of the rollouts takes these
+                      "side_bias": float(SFM_SIDE_BIAS if cfg.amp_side_bias is None else cfg.amp_side_bias)}
+        # with the walls, every SocialForceParams of the rollouts takes these
         self.sfm = SocialForceParams(**self.walls)
         self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN, **self.walls)
         # margin on the radius that walls see in the social-force rollouts (NavConfig.amp_wall_margin)

@@ -130,6 +130,11 @@ class NavConfig:
             only, so a target swings wide round a corner and centres in a door without being braked; None (default) =
             ``navzoo.envs.amp_humans.CORNER_MARGIN`` (0, off). 0.15 halves the trips with a wall contact and costs
             success as a wider wall margin does (docs/pedestrians_log.md, "Corner steering in the target rollouts").
+        amp_side_bias: ``human_model="amp"``: the keep-right gain of those social-force target rollouts
+            (``SocialForceParams.side_bias``: a share of the push from someone ahead that turns a person to its right,
+            so people meeting head-on pass left shoulder to left shoulder); None (default) =
+            ``navzoo.envs.amp_humans.SFM_SIDE_BIAS`` (0.1, the kinematic crowd's own). 0.4 raised diffusion + AMP by
+            3.6 points per limit on the protocol scenes (docs/crowd_log.md, "Keeping right").
         amp_sight_clearance: ``human_model="amp"``: the controller sees only the target points that a straight line
             from the pelvis reaches with this clearance (m) from obstacles; the points behind a corner are shown
             continued straight, so the body walks past the corner before it turns
@@ -238,6 +243,7 @@ class NavConfig:
     amp_wall_near_ramp: float | None = None
     amp_wall_margin: float | None = None
     amp_corner_margin: float | None = None
+    amp_side_bias: float | None = None
     amp_sight_clearance: float | None = None
     crowd_wall_strength: float = 1.0
     crowd_wall_near_range: float = 0.0
@@ -312,6 +318,8 @@ class NavConfig:
             raise bad("amp_wall_margin", "None or a finite number >= 0")
         if not (self.amp_corner_margin is None or _is_non_negative(self.amp_corner_margin)):
             raise bad("amp_corner_margin", "None or a finite number >= 0")
+        if not (self.amp_side_bias is None or _is_non_negative(self.amp_side_bias)):
+            raise bad("amp_side_bias", "None or a finite number >= 0")
         if not (self.amp_sight_clearance is None or _is_non_negative(self.amp_sight_clearance)):
             raise bad("amp_sight_clearance", "None or a finite number >= 0")
         if self.crowd_model not in CROWD_MODELS:
