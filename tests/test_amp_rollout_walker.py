@@ -55,7 +55,7 @@ def test_a_stronger_keep_right_gain_turns_the_social_force_rollouts_aside_earlie
         aside = np.flatnonzero(off > 0.2)
         return (int(aside[0]) if aside.size else -1), float(np.linalg.norm(paths[0] - paths[1], axis=1).min())
 
-    assert amp_humans.SFM_SIDE_BIAS == 0.1  # the kinematic crowd's gain, the default
+    assert amp_humans.SFM_SIDE_BIAS == 0.4  # the default since 2026-12-06 (the kinematic crowd keeps 0.1)
     (t0, gap0), (t1, gap1), (t4, gap4) = meeting(0.0), meeting(0.1), meeting(0.4)
     assert t0 == -1  # no tie-break: a perfectly head-on pair brakes and stands face to face
     assert 0 < t4 < t1 and gap4 > gap1 > gap0  # the stronger gain steps aside earlier and passes wider
@@ -67,12 +67,12 @@ def test_the_keep_right_gain_is_a_config_field(monkeypatch):
     from navzoo.envs.config import NavConfig
 
     by_field, _ = _meeting_rollouts("sfm", monkeypatch, amp_side_bias=0.4)
-    default, _ = _meeting_rollouts("sfm", monkeypatch)
     monkeypatch.setattr(amp_humans, "SFM_SIDE_BIAS", 0.4)
     by_constant, _ = _meeting_rollouts("sfm", monkeypatch)
     np.testing.assert_allclose(by_field, by_constant)
-    assert not np.allclose(by_field, default)
     monkeypatch.setattr(amp_humans, "SFM_SIDE_BIAS", 0.1)
+    assert not np.allclose(by_field, _meeting_rollouts("sfm", monkeypatch)[0])
+    np.testing.assert_allclose(_meeting_rollouts("sfm", monkeypatch, amp_side_bias=0.4)[0], by_field)
     from navzoo.envs.nav_env import NavEnv
 
     env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=2, human_model="amp", amp_side_bias=0.25)

