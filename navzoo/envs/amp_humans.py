@@ -519,14 +519,14 @@ class AmpHumans:
         wall = env.config.amp_wall_strength
         self.a_wall = float(SFM_A_WALL if wall is None else wall)  # A_wall of the target rollouts
         cfg = env.config
-        near = {"wall_near_range": (cfg.amp_wall_near_range, SFM_WALL_NEAR_RANGE),
-                "A_wall_near": (cfg.amp_wall_near_strength, SFM_A_WALL_NEAR),
-                "wall_near_ramp": (cfg.amp_wall_near_ramp, SFM_WALL_NEAR_RAMP)}
-        self.walls = {"A_wall": self.a_wall, **{k: float(const if v is None else v) for k, (v, const) in near.items()},
-                      "side_bias": float(SFM_SIDE_BIAS if cfg.amp_side_bias is None else cfg.amp_side_bias)}
-        # with the walls, every SocialForceParams of the rollouts takes these
-        self.sfm = SocialForceParams(**self.walls)
-        self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN, **self.walls)
+        # the SocialForceParams fields that every parameter set of the rollouts takes: NavConfig's, else the constant
+        given = {"wall_near_range": (cfg.amp_wall_near_range, SFM_WALL_NEAR_RANGE),
+                 "A_wall_near": (cfg.amp_wall_near_strength, SFM_A_WALL_NEAR),
+                 "wall_near_ramp": (cfg.amp_wall_near_ramp, SFM_WALL_NEAR_RAMP),
+                 "side_bias": (cfg.amp_side_bias, SFM_SIDE_BIAS)}
+        self.sfm_fields = {"A_wall": self.a_wall, **{k: float(const if v is None else v) for k, (v, const) in given.items()}}
+        self.sfm = SocialForceParams(**self.sfm_fields)
+        self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN, **self.sfm_fields)
         # margin on the radius that walls see in the social-force rollouts (NavConfig.amp_wall_margin)
         self.wall_margin = float(WALL_PLAN_MARGIN if cfg.amp_wall_margin is None else cfg.amp_wall_margin)
         # extra margin that exposed corners keep, as a sideways push (NavConfig.amp_corner_margin; CORNER_MARGIN)
@@ -589,7 +589,7 @@ class AmpHumans:
             sf_rad, sf_params = env.radius[h], self.sfm_keep
         elif PASS_MARGIN:
             sf_rad, sf_params = env.radius[h], SocialForceParams(pass_margin=PLAN_MARGIN, pass_speed=PASS_SPEED,
-                                                                 **self.walls)
+                                                                 **self.sfm_fields)
         else:
             sf_rad, sf_params = rad, self.sfm
         graded = GRADED_WALL_MARGIN and self.wall_margin > 0.0 and env.config.crowd_model in ("sfm", "diffusion")
