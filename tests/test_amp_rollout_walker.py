@@ -81,3 +81,39 @@ def test_the_keep_right_gain_is_a_config_field(monkeypatch):
     for bad in (-0.1, float("nan"), float("inf"), True, "0.4"):
         with pytest.raises(ValueError, match="amp_side_bias must be None or a finite number >= 0"):
             NavConfig(human_model="amp", amp_side_bias=bad)
+
+
+def test_the_keep_right_gain_near_narrow_doors(monkeypatch):
+    """Within ``amp_side_narrow_reach`` of a narrow point of its A* path a person of the social-force target rollouts
+    keeps right with ``amp_side_bias_narrow``: in the doorway (every path passes its 1.0 m door), a reach that covers
+    the whole scene gives the rollouts of that gain everywhere, reach 0 those of the default gain, and a 1 m reach
+    something between (each person switches gain where it comes near the door); bad values are refused by name."""
+    from navzoo.envs.config import NavConfig
+    from navzoo.envs.nav_env import NavEnv
+
+    def rollouts(**config) -> np.ndarray:
+        env = NavEnv(scene="doorway", n_robots=0, n_humans=6, human_model="amp", crowd_model="sfm", dt=1 / 30,
+                     time_limit=10.0, **config)
+        env.reset(seed=0)
+        h = np.flatnonzero(~env.is_robot)
+        assert all(len(pts) for pts, _ in env.amp.narrow_passages([env.paths[i] for i in h], env.radius[h]))
+        env.amp.plan_all()
+        paths = env.amp.paths.copy()
+        env.close()
+        return paths
+
+    assert amp_humans.SFM_SIDE_NARROW_REACH == 0.0 and amp_humans.SFM_SIDE_BIAS_NARROW == 0.1  # off by default
+    default, low = rollouts(), rollouts(amp_side_bias=0.1)
+    assert np.abs(default - low).max() > 0.01  # the gain matters in this scene
+    np.testing.assert_array_equal(rollouts(amp_side_narrow_reach=0.0, amp_side_bias_narrow=0.1), default)
+    np.testing.assert_array_equal(rollouts(amp_side_narrow_reach=100.0), low)  # narrow gain 0.1 (the constant)
+    np.testing.assert_array_equal(rollouts(amp_side_narrow_reach=100.0, amp_side_bias_narrow=0.4), default)
+    near_door = rollouts(amp_side_narrow_reach=1.0)
+    assert np.abs(near_door - default).max() > 1e-3 and np.abs(near_door - low).max() > 1e-3
+    monkeypatch.setattr(amp_humans, "SFM_SIDE_NARROW_REACH", 100.0)  # the constants where the fields are None
+    monkeypatch.setattr(amp_humans, "SFM_SIDE_BIAS_NARROW", 0.1)
+    np.testing.assert_array_equal(rollouts(), low)
+    for name in ("amp_side_narrow_reach", "amp_side_bias_narrow"):
+        for bad in (-0.1, float("nan"), float("inf"), True, "1.0"):
+            with pytest.raises(ValueError, match=f"{name} must be None or a finite number >= 0"):
+                NavConfig(human_model="amp", **{name: bad})

@@ -17,6 +17,7 @@ while the body's joints are left to the controller.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -201,6 +202,13 @@ SFM_WALL_NEAR_RAMP = 0.0
 # 4.3 points per limit with diffusion targets and 3.6 with social-force targets on the protocol scenes, at more trips
 # off their path (docs/crowd_log.md, "Keeping right"). NavConfig.amp_side_bias overrides.
 SFM_SIDE_BIAS = 0.4
+# ... except near narrow doors: within SFM_SIDE_NARROW_REACH (m) of a narrow point of its A* path (a stretch too
+# narrow for the full wall margin, the graded wall margin's narrow points: doors under about 1.0 m), a person of the
+# rollouts keeps right with SFM_SIDE_BIAS_NARROW instead. In a door too narrow to pass in, a sidestep only takes
+# people into the jambs (the home, whose people meet in its 0.9 m doors, lost with the gain 0.4: 0.357 -> 0.230 per
+# limit). 0 = off (the default); NavConfig.amp_side_narrow_reach / amp_side_bias_narrow override.
+SFM_SIDE_NARROW_REACH = 0.0
+SFM_SIDE_BIAS_NARROW = 0.1
 # Bodies touch obstacles mostly at exposed corners (door jambs, shelf ends: 65 % of the wall-contact events of
 # social-force + AMP in six protocol scenes, seed 0), with the pelvis 0.29 m from the corner while its target keeps
 # 0.45 m: a body following a target round a corner cuts it (scripts/amp_wall_contact_links.py). CORNER_MARGIN > 0 (m)
@@ -527,6 +535,10 @@ class AmpHumans:
         self.sfm_fields = {"A_wall": self.a_wall, **{k: float(const if v is None else v) for k, (v, const) in given.items()}}
         self.sfm = SocialForceParams(**self.sfm_fields)
         self.sfm_keep = SocialForceParams(keep_apart=PLAN_MARGIN, **self.sfm_fields)
+        # the keep-right gain near narrow doors (NavConfig.amp_side_narrow_reach / amp_side_bias_narrow)
+        reach, narrow_bias = cfg.amp_side_narrow_reach, cfg.amp_side_bias_narrow
+        self.side_narrow_reach = float(SFM_SIDE_NARROW_REACH if reach is None else reach)
+        self.side_bias_narrow = float(SFM_SIDE_BIAS_NARROW if narrow_bias is None else narrow_bias)
         # margin on the radius that walls see in the social-force rollouts (NavConfig.amp_wall_margin)
         self.wall_margin = float(WALL_PLAN_MARGIN if cfg.amp_wall_margin is None else cfg.amp_wall_margin)
         # extra margin that exposed corners keep, as a sideways push (NavConfig.amp_corner_margin; CORNER_MARGIN)
@@ -592,8 +604,14 @@ class AmpHumans:
                                                                  **self.sfm_fields)
         else:
             sf_rad, sf_params = rad, self.sfm
-        graded = GRADED_WALL_MARGIN and self.wall_margin > 0.0 and env.config.crowd_model in ("sfm", "diffusion")
-        narrow = self.narrow_passages(paths, env.radius[h]) if graded else None
+        social = env.config.crowd_model in ("sfm", "diffusion")
+        graded = GRADED_WALL_MARGIN and self.wall_margin > 0.0 and social
+        side_narrow = social and self.side_narrow_reach > 0.0 and self.side_bias_narrow != sf_params.side_bias
+        doors = self.narrow_passages(paths, env.radius[h]) if graded or side_narrow else None
+        narrow = doors if graded else None
+        if side_narrow:  # the rollouts' parameters near narrow doors: another keep-right gain
+            sf_narrow = replace(sf_params, side_bias=self.side_bias_narrow)
+            door_points = [pts for pts, _ in doors]
         wall_rad = env.radius[h] + self.wall_margin
         visible = [env.waypoint_visibility(i) for i in h]
         vmax = np.full(self.n, env.config.human_max_speed)
@@ -635,9 +653,16 @@ class AmpHumans:
                     warp = np.where(blocked_ahead(pos[stalled], later - pos[stalled], others, STALL_CLEAR_M, STALL_CLEAR_DEG),
                                     1.0, warp)
         def social_force(pos, vel, pref, o_pos, wall_rad):  # one social-force step of the rollout
-            return social_force_velocities(pos, vel, pref, sf_rad, vmax, PLAN_DT, sf_params, env.segments,
-                                           others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
-                                           segment_groups=env.segment_groups, wall_radius=wall_rad)
+            def step(params):
+                return social_force_velocities(pos, vel, pref, sf_rad, vmax, PLAN_DT, params, env.segments,
+                                               others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
+                                               segment_groups=env.segment_groups, wall_radius=wall_rad)
+            v = step(sf_params)
+            if side_narrow:  # each person's forces depend on its own parameters only: rows of the other step
+                near = near_narrow(door_points, pos, self.side_narrow_reach)
+                if near.any():
+                    v[near] = step(sf_narrow)[near]
+            return v
 
         out = np.empty((self.n, steps + 1, 2))
         out[:, 0] = pos

@@ -135,6 +135,12 @@ class NavConfig:
             so people meeting head-on pass left shoulder to left shoulder); None (default) =
             ``navzoo.envs.amp_humans.SFM_SIDE_BIAS`` (0.4 since 2026-12-06; 0.1, the kinematic crowd's own, before:
             docs/crowd_log.md, "Keeping right").
+        amp_side_narrow_reach: ``human_model="amp"``: within this distance (m) of a narrow point of its A* path (a door
+            too narrow for the full wall margin of those rollouts, under about 1.0 m), a person of the target rollouts
+            keeps right with ``amp_side_bias_narrow`` instead of ``amp_side_bias``; 0 = off. None (default) =
+            ``navzoo.envs.amp_humans.SFM_SIDE_NARROW_REACH`` (0, off).
+        amp_side_bias_narrow: that keep-right gain near narrow doors; None (default) =
+            ``amp_humans.SFM_SIDE_BIAS_NARROW`` (0.1).
         amp_sight_clearance: ``human_model="amp"``: the controller sees only the target points that a straight line
             from the pelvis reaches with this clearance (m) from obstacles; the points behind a corner are shown
             continued straight, so the body walks past the corner before it turns
@@ -244,6 +250,8 @@ class NavConfig:
     amp_wall_margin: float | None = None
     amp_corner_margin: float | None = None
     amp_side_bias: float | None = None
+    amp_side_narrow_reach: float | None = None
+    amp_side_bias_narrow: float | None = None
     amp_sight_clearance: float | None = None
     crowd_wall_strength: float = 1.0
     crowd_wall_near_range: float = 0.0
@@ -318,8 +326,9 @@ class NavConfig:
             raise bad("amp_wall_margin", "None or a finite number >= 0")
         if not (self.amp_corner_margin is None or _is_non_negative(self.amp_corner_margin)):
             raise bad("amp_corner_margin", "None or a finite number >= 0")
-        if not (self.amp_side_bias is None or _is_non_negative(self.amp_side_bias)):
-            raise bad("amp_side_bias", "None or a finite number >= 0")
+        for name in ("amp_side_bias", "amp_side_narrow_reach", "amp_side_bias_narrow"):
+            if not (getattr(self, name) is None or _is_non_negative(getattr(self, name))):
+                raise bad(name, "None or a finite number >= 0")
         if not (self.amp_sight_clearance is None or _is_non_negative(self.amp_sight_clearance)):
             raise bad("amp_sight_clearance", "None or a finite number >= 0")
         if self.crowd_model not in CROWD_MODELS:
