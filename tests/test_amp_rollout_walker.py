@@ -86,8 +86,9 @@ def test_the_keep_right_gain_is_a_config_field(monkeypatch):
 def test_the_keep_right_gain_near_narrow_doors(monkeypatch):
     """Within ``amp_side_narrow_reach`` of a narrow point of its A* path a person of the social-force target rollouts
     keeps right with ``amp_side_bias_narrow``: in the doorway (every path passes its 1.0 m door), a reach that covers
-    the whole scene gives the rollouts of that gain everywhere, reach 0 those of the default gain, and a 1 m reach
-    something between (each person switches gain where it comes near the door); bad values are refused by name."""
+    the whole scene gives the rollouts of that gain everywhere, reach 0 (or the same gain near doors) those of
+    ``amp_side_bias`` everywhere, and the default reach (1.5 m) or a 1 m reach something between (each person switches
+    gain where it comes near the door); bad values are refused by name."""
     from navzoo.envs.config import NavConfig
     from navzoo.envs.nav_env import NavEnv
 
@@ -102,10 +103,12 @@ def test_the_keep_right_gain_near_narrow_doors(monkeypatch):
         env.close()
         return paths
 
-    assert amp_humans.SFM_SIDE_NARROW_REACH == 0.0 and amp_humans.SFM_SIDE_BIAS_NARROW == 0.1  # off by default
-    default, low = rollouts(), rollouts(amp_side_bias=0.1)
+    assert amp_humans.SFM_SIDE_NARROW_REACH == 1.5 and amp_humans.SFM_SIDE_BIAS_NARROW == 0.1  # the defaults
+    default = rollouts(amp_side_narrow_reach=0.0)  # the gain 0.4 everywhere
+    low = rollouts(amp_side_bias=0.1)
     assert np.abs(default - low).max() > 0.01  # the gain matters in this scene
-    np.testing.assert_array_equal(rollouts(amp_side_narrow_reach=0.0, amp_side_bias_narrow=0.1), default)
+    np.testing.assert_array_equal(rollouts(amp_side_bias_narrow=0.4), default)  # the same gain near doors: no switch
+    assert np.abs(rollouts() - default).max() > 1e-3  # by default the gain near the door is 0.1
     np.testing.assert_array_equal(rollouts(amp_side_narrow_reach=100.0), low)  # narrow gain 0.1 (the constant)
     np.testing.assert_array_equal(rollouts(amp_side_narrow_reach=100.0, amp_side_bias_narrow=0.4), default)
     near_door = rollouts(amp_side_narrow_reach=1.0)

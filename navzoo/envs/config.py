@@ -138,7 +138,8 @@ class NavConfig:
         amp_side_narrow_reach: ``human_model="amp"``: within this distance (m) of a narrow point of its A* path (a door
             too narrow for the full wall margin of those rollouts, under about 1.0 m), a person of the target rollouts
             keeps right with ``amp_side_bias_narrow`` instead of ``amp_side_bias``; 0 = off. None (default) =
-            ``navzoo.envs.amp_humans.SFM_SIDE_NARROW_REACH`` (0, off).
+            ``navzoo.envs.amp_humans.SFM_SIDE_NARROW_REACH`` (1.5 since 2026-12-06; docs/crowd_log.md, "Keeping right
+            except near narrow doors").
         amp_side_bias_narrow: that keep-right gain near narrow doors; None (default) =
             ``amp_humans.SFM_SIDE_BIAS_NARROW`` (0.1).
         amp_sight_clearance: ``human_model="amp"``: the controller sees only the target points that a straight line
