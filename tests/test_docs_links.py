@@ -100,13 +100,33 @@ def anchors_of(path: Path) -> frozenset[str]:
     return frozenset(anchors_of_text(path.read_text(encoding="utf-8")))
 
 
-def links_of_text(text: str) -> list[tuple[int, str]]:
-    """(line number, target) of every markdown link outside code blocks and code spans."""
-    out = []
+def prose_blocks(text: str) -> list[tuple[int, str]]:
+    """(first line number, text) of the runs of consecutive prose lines that a link may span: a paragraph or list
+    item wrapped over several lines. Blank lines, code fences, headings and table rows end a run (a table row and a
+    heading are runs of their own)."""
+    blocks: list[tuple[int, list[str]]] = []
+    last = None
     for number, line in prose_lines(text):
-        line = CODE_SPAN.sub("", line)
-        for m in LINK.finditer(line):
-            out.append((number, m.group(2)))
+        single = line.lstrip().startswith("|") or ATX.match(line) is not None
+        if not line.strip():
+            last = None
+            continue
+        if last is None or number != last + 1 or single or blocks[-1][1][-1].lstrip().startswith(("|", "#")):
+            blocks.append((number, [line]))
+        else:
+            blocks[-1][1].append(line)
+        last = number
+    return [(start, "\n".join(lines)) for start, lines in blocks]
+
+
+def links_of_text(text: str) -> list[tuple[int, str]]:
+    """(line number, target) of every markdown link outside code blocks and code spans; a link whose text is
+    wrapped over lines counts at the line where it starts."""
+    out = []
+    for start, block in prose_blocks(text):
+        block = CODE_SPAN.sub(lambda m: "\n" * m.group(0).count("\n"), block)  # keep the line count
+        for m in LINK.finditer(block):
+            out.append((start + block.count("\n", 0, m.start()), m.group(2)))
     return out
 
 
@@ -158,6 +178,11 @@ def test_links_skip_code():
     text = "[a](a.md) `[b](b.md)`\n```\n[c](c.md)\n```\n~~~\n[d](d.md)\n~~~\n![e](img/e.png \"t\") [f](<f.md#x>)\n"
     text += "- item\n    ```bash\n    [g](g.md)\n    ```\n"
     assert links_of_text(text) == [(1, "a.md"), (8, "img/e.png"), (8, "f.md#x")]
+
+
+def test_links_wrapped_over_lines():
+    text = "Some text, see [a long\n  title](a.md#x) and\n[b](b.md).\n\n| [c](c.md) |\n| [d\n\n[e\ntext](e.md)\n"
+    assert links_of_text(text) == [(1, "a.md#x"), (3, "b.md"), (5, "c.md"), (8, "e.md")]
 
 
 def test_docs_links():
