@@ -207,7 +207,7 @@ SFM_SIDE_BIAS = 0.4
 # rollouts keeps right with SFM_SIDE_BIAS_NARROW instead. In a door too narrow to pass in, a sidestep only takes
 # people into the jambs (the home, whose people meet in its 0.9 m doors, lost with the gain 0.4 everywhere: 0.357 ->
 # 0.230 per limit with diffusion targets; 0.344 with this rule). Default since 2026-12-06 (0 = off): success per limit
-# +1.1 +- 0.5 points with diffusion targets (8 seeds), +1.4 +- 0.9 held out, level with social-force targets, which
+# +1.1 +- 0.5 points with diffusion targets (8 seeds), +1.0 +- 0.8 held out, level with social-force targets, which
 # fall and touch walls and people less (docs/crowd_log.md, "Keeping right except near narrow doors").
 # NavConfig.amp_side_narrow_reach / amp_side_bias_narrow override.
 SFM_SIDE_NARROW_REACH = 1.5
@@ -661,7 +661,9 @@ class AmpHumans:
                                                others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
                                                segment_groups=env.segment_groups, wall_radius=wall_rad)
             v = step(sf_params)
-            if side_narrow:  # each person's forces depend on its own parameters only: rows of the other step
+            # each person's forces depend on its own gain only, and a step of PLAN_DT is one sub-step of the social force
+            # (max_substep 0.1 s), so the rows of the step with the other gain are exact
+            if side_narrow:
                 near = near_narrow(door_points, pos, self.side_narrow_reach)
                 if near.any():
                     v[near] = step(sf_narrow)[near]
