@@ -33,7 +33,7 @@ def scene_list(text: str) -> list[tuple[str, int]]:
     try:
         return parse_scene_counts(text)
     except ValueError as e:
-        raise SystemExit(f"--scenes: {e}") from None
+        raise SystemExit(str(e)) from None
 
 
 def count(scene: str, people: int, seeds: int, reach: float = 1.5) -> dict:
@@ -71,7 +71,10 @@ def main() -> None:
     args = ap.parse_args()
     if args.seeds < 1:
         raise SystemExit("--seeds must be >= 1")
-    rows = [count(s, n, args.seeds) for s, n in scene_list(args.scenes)]
+    try:
+        rows = [count(s, n, args.seeds) for s, n in scene_list(args.scenes)]
+    except ValueError as e:  # an unknown scene or a bad people count, named by the env
+        raise SystemExit(f"narrow_door_paths: {e}") from None
     if args.json:
         print(json.dumps(rows, indent=1))
         return
