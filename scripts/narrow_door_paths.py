@@ -21,7 +21,7 @@ import json
 import numpy as np
 
 from navzoo.benchmark.pedestrians import HELDOUT_SCENES, SCENES, parse_scene_counts, people_per_scene
-from navzoo.envs.amp_humans import DOOR_SLACK, narrow_points, near_narrow
+from navzoo.envs.amp_humans import DOOR_SLACK, WALL_PLAN_MARGIN, narrow_points, near_narrow
 from navzoo.envs.nav_env import NavEnv
 
 
@@ -46,8 +46,8 @@ def count(scene: str, people: int, seeds: int, reach: float = 1.5) -> dict:
             env.reset(seed=seed)
             h = np.flatnonzero(~env.is_robot)
             paths = [env.paths[i] for i in h]
-            # the threshold of AmpHumans.narrow_passages
-            narrow = [narrow_points(p, env.scene.clearance, float(env.radius[i]) + env.amp.wall_margin + DOOR_SLACK)
+            # the threshold of the keep-right rule's doors (AmpHumans.narrow_passages at WALL_PLAN_MARGIN)
+            narrow = [narrow_points(p, env.scene.clearance, float(env.radius[i]) + WALL_PLAN_MARGIN + DOOR_SLACK)
                       for p, i in zip(paths, h, strict=True)]
             for path, (pts, c) in zip(paths, narrow, strict=True):
                 total += 1

@@ -116,6 +116,21 @@ def test_the_keep_right_gain_near_narrow_doors(monkeypatch):
     monkeypatch.setattr(amp_humans, "SFM_SIDE_NARROW_REACH", 100.0)  # the constants where the fields are None
     monkeypatch.setattr(amp_humans, "SFM_SIDE_BIAS_NARROW", 0.1)
     np.testing.assert_array_equal(rollouts(), low)
+    # the rule's doors are those of the default wall margin: a wider amp_wall_margin finds more narrow points (grocery
+    # aisles) for its graded margin, not more doors for the keep-right rule
+    def narrow_counts(**config) -> tuple[int, int]:
+        env = NavEnv(scene="grocery", n_robots=0, n_humans=6, human_model="amp", dt=1 / 30, time_limit=10.0, **config)
+        env.reset(seed=1)
+        h = np.flatnonzero(~env.is_robot)
+        paths, radius = [env.paths[i] for i in h], env.radius[h]
+        counts = (sum(len(p) for p, _ in env.amp.narrow_passages(paths, radius)),
+                  sum(len(p) for p, _ in env.amp.narrow_passages(paths, radius, amp_humans.WALL_PLAN_MARGIN)))
+        env.close()
+        return counts
+
+    default_graded, default_doors = narrow_counts()
+    wide_graded, wide_doors = narrow_counts(amp_wall_margin=0.25)
+    assert default_graded == default_doors == wide_doors < wide_graded
     for name in ("amp_side_narrow_reach", "amp_side_bias_narrow"):
         for bad in (-0.1, float("nan"), float("inf"), True, "1.0"):
             with pytest.raises(ValueError, match=f"{name} must be None or a finite number >= 0"):

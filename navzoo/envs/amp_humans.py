@@ -203,7 +203,8 @@ SFM_WALL_NEAR_RAMP = 0.0
 # off their path (docs/crowd_log.md, "Keeping right"). NavConfig.amp_side_bias overrides.
 SFM_SIDE_BIAS = 0.4
 # ... except near narrow doors: within SFM_SIDE_NARROW_REACH (m) of a narrow point of its A* path (a stretch too
-# narrow for the full wall margin, the graded wall margin's narrow points: doors under about 1.0 m), a person of the
+# narrow for the default wall margin WALL_PLAN_MARGIN, whatever NavConfig.amp_wall_margin is: the graded wall margin's
+# narrow points at that margin, doors under about 1.0 m), a person of the
 # rollouts keeps right with SFM_SIDE_BIAS_NARROW instead. In a door too narrow to pass in, a sidestep only takes
 # people into the jambs (the home, whose people meet in its 0.9 m doors, lost with the gain 0.4 everywhere: 0.357 ->
 # 0.230 per limit with diffusion targets; 0.344 with this rule). Default since 2026-12-06 (0 = off): success per limit
@@ -552,7 +553,8 @@ class AmpHumans:
         model = env.config.crowd_model
         self.orca = OrcaParams(right_bias=0.0, one_step_safety=False) if model == "orca_rvo2" else OrcaParams()
         self._index = {b: j for j, b in enumerate(self.ids)}
-        self._narrow: list[tuple[object, tuple[np.ndarray, np.ndarray]]] = [(None, (np.zeros((0, 2)), np.zeros(0)))] * self.n
+        # per wall margin, per person: (the path, its narrow points), recomputed when the path changes (narrow_passages)
+        self._narrow: dict[float, list[tuple[object, tuple[np.ndarray, np.ndarray]]]] = {}
 
     # ------------------------------------------------------------------ reset / state
     def reset(self, pos: np.ndarray, yaw: np.ndarray) -> None:
@@ -610,11 +612,11 @@ class AmpHumans:
         social = env.config.crowd_model in ("sfm", "diffusion")
         graded = GRADED_WALL_MARGIN and self.wall_margin > 0.0 and social
         side_narrow = social and self.side_narrow_reach > 0.0 and self.side_bias_narrow != sf_params.side_bias
-        doors = self.narrow_passages(paths, env.radius[h]) if graded or side_narrow else None
-        narrow = doors if graded else None
+        narrow = self.narrow_passages(paths, env.radius[h]) if graded else None
         if side_narrow:  # the rollouts' parameters near narrow doors: another keep-right gain
             sf_narrow = replace(sf_params, side_bias=self.side_bias_narrow)
-            door_points = [pts for pts, _ in doors]
+            # the doors of the default wall margin, whatever amp_wall_margin is: the same doors under about 1.0 m
+            door_points = [pts for pts, _ in self.narrow_passages(paths, env.radius[h], WALL_PLAN_MARGIN)]
         wall_rad = env.radius[h] + self.wall_margin
         visible = [env.waypoint_visibility(i) for i in h]
         vmax = np.full(self.n, env.config.human_max_speed)
@@ -730,15 +732,18 @@ class AmpHumans:
         self.starting = goals != self._goals_seen
         self._goals_seen = goals.copy()
 
-    def narrow_passages(self, paths: list[np.ndarray], radius: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-        """Per person, the points of its A* path where the wall margin must shrink (:func:`narrow_points`),
-        recomputed only when its path changed."""
+    def narrow_passages(self, paths: list[np.ndarray], radius: np.ndarray,
+                        margin: float | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per person, the points of its A* path where a wall margin (``margin``, default the rollouts' own
+        ``wall_margin``) must shrink (:func:`narrow_points`), recomputed only when its path changed."""
+        margin = self.wall_margin if margin is None else float(margin)
+        cache = self._narrow.setdefault(margin, [(None, (np.zeros((0, 2)), np.zeros(0)))] * self.n)
         out = []
         for j, path in enumerate(paths):
-            key, value = self._narrow[j]
+            key, value = cache[j]
             if key is not path:
-                value = narrow_points(path, self.env.scene.clearance, float(radius[j]) + self.wall_margin + DOOR_SLACK)
-                self._narrow[j] = (path, value)
+                value = narrow_points(path, self.env.scene.clearance, float(radius[j]) + margin + DOOR_SLACK)
+                cache[j] = (path, value)
             out.append(value)
         return out
 

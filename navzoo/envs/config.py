@@ -136,8 +136,9 @@ class NavConfig:
             ``navzoo.envs.amp_humans.SFM_SIDE_BIAS`` (0.4 since 2026-12-06; 0.1, the kinematic crowd's own, before:
             docs/crowd_log.md, "Keeping right").
         amp_side_narrow_reach: ``human_model="amp"``: within this distance (m) of a narrow point of its A* path (a door
-            too narrow for the full wall margin of those rollouts, under about 1.0 m), a person of the target rollouts
-            keeps right with ``amp_side_bias_narrow`` instead of ``amp_side_bias``; 0 = off. None (default) =
+            too narrow for the default wall margin of those rollouts, under about 1.0 m, whatever ``amp_wall_margin``
+            is), a person of the target rollouts keeps right with ``amp_side_bias_narrow`` instead of
+            ``amp_side_bias``; 0 = off. None (default) =
             ``navzoo.envs.amp_humans.SFM_SIDE_NARROW_REACH`` (1.5 since 2026-12-06; docs/crowd_log.md, "Keeping right
             except near narrow doors").
         amp_side_bias_narrow: that keep-right gain near narrow doors; None (default) =
