@@ -2,8 +2,9 @@
 
     python scripts/narrow_door_paths.py [--scenes protocol|heldout|S1:N,S2:N] [--seeds 12] [--json]
 
-A *narrow point* of a person's A* path is a point with less clearance than the person's radius plus the target
-rollouts' wall margin plus ``DOOR_SLACK`` (``navzoo.envs.amp_humans.narrow_points``: doors under about 1.0 m).
+A *narrow point* of a person's A* path is a point with less clearance than the person's radius plus the default
+wall margin of the target rollouts (``WALL_PLAN_MARGIN``) plus ``DOOR_SLACK`` (``AmpHumans.narrow_passages``: doors
+under about 1.0 m).
 The graded wall margin (``GRADED_WALL_MARGIN``) and the keep-right gain near narrow doors
 (``NavConfig.amp_side_narrow_reach``) act only near such points, so a scene whose paths have none runs the same,
 trip for trip, with or without them. For each scene (with its people count of the following protocol) and each
@@ -21,7 +22,7 @@ import json
 import numpy as np
 
 from navzoo.benchmark.pedestrians import HELDOUT_SCENES, SCENES, parse_scene_counts, people_per_scene
-from navzoo.envs.amp_humans import DOOR_SLACK, WALL_PLAN_MARGIN, narrow_points, near_narrow
+from navzoo.envs.amp_humans import WALL_PLAN_MARGIN, narrow_points
 from navzoo.envs.nav_env import NavEnv
 
 
@@ -46,16 +47,17 @@ def count(scene: str, people: int, seeds: int, reach: float = 1.5) -> dict:
             env.reset(seed=seed)
             h = np.flatnonzero(~env.is_robot)
             paths = [env.paths[i] for i in h]
-            # the threshold of the keep-right rule's doors (AmpHumans.narrow_passages at WALL_PLAN_MARGIN)
-            narrow = [narrow_points(p, env.scene.clearance, float(env.radius[i]) + WALL_PLAN_MARGIN + DOOR_SLACK)
-                      for p, i in zip(paths, h, strict=True)]
+            narrow = env.amp.narrow_passages(paths, env.radius[h], WALL_PLAN_MARGIN)  # the keep-right rule's doors
             for path, (pts, c) in zip(paths, narrow, strict=True):
                 total += 1
-                dense, _ = narrow_points(path, lambda x: np.zeros(len(x)), 1.0)  # every 5 cm of the path
+                dense, _ = narrow_points(path, lambda x: np.zeros(len(x)), 1.0)  # the path every 5 cm
                 if len(pts):
                     with_narrow += 1
                     clearance = min(clearance, float(c.min()))
-                share.append(float(near_narrow([pts] * len(dense), dense, reach).mean()) if len(dense) else 0.0)
+                    gap = np.linalg.norm(dense[:, None] - pts[None], axis=2).min(axis=1)
+                    share.append(float((gap < reach).mean()))
+                else:
+                    share.append(0.0)
     finally:
         env.close()
     return {"scene": scene, "people": people, "paths": total, "paths_with_narrow_points": with_narrow,

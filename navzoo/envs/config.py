@@ -324,15 +324,11 @@ class NavConfig:
                 value = getattr(self, name)
                 if not ((none and value is None) or ok(value)):
                     raise bad(name, f"{none}a finite number {expected}")
-        if not (self.amp_wall_margin is None or _is_non_negative(self.amp_wall_margin)):
-            raise bad("amp_wall_margin", "None or a finite number >= 0")
-        if not (self.amp_corner_margin is None or _is_non_negative(self.amp_corner_margin)):
-            raise bad("amp_corner_margin", "None or a finite number >= 0")
-        for name in ("amp_side_bias", "amp_side_narrow_reach", "amp_side_bias_narrow"):
+        # the other target-rollout settings: None (the amp_humans constant) or a finite number >= 0
+        for name in ("amp_wall_margin", "amp_corner_margin", "amp_side_bias", "amp_side_narrow_reach",
+                     "amp_side_bias_narrow", "amp_sight_clearance"):
             if not (getattr(self, name) is None or _is_non_negative(getattr(self, name))):
                 raise bad(name, "None or a finite number >= 0")
-        if not (self.amp_sight_clearance is None or _is_non_negative(self.amp_sight_clearance)):
-            raise bad("amp_sight_clearance", "None or a finite number >= 0")
         if self.crowd_model not in CROWD_MODELS:
             raise bad("crowd_model", "'sfm', 'orca', 'orca_rvo2', 'diffusion' or 'replay'")
         self._validate_replay()
