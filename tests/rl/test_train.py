@@ -6,12 +6,14 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import queue
 import secrets
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -173,17 +175,32 @@ def test_sigint_saves_and_exits(tmp_path):
            "--checkpoint-every", "1000", "--out", str(out), "--num-cpus", "2"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=_env(),
                             cwd=tmp_path)
+    # Generous limits: Ray's start and shutdown take minutes on a busy 2-core machine. The lines are read on a thread
+    # so that a trainer that hangs without printing fails the test at the deadline instead of blocking it.
+    lines: queue.Queue = queue.Queue()
+
+    def read() -> None:
+        for x in proc.stdout:
+            lines.put(x)
+        lines.put(None)
+
+    threading.Thread(target=read, daemon=True).start()
     try:
-        deadline = time.time() + 150
-        seen = []
-        for line in proc.stdout:
-            if line.startswith("{"):
-                seen.append(json.loads(line))
-                if "iteration" in seen[-1]:
-                    proc.send_signal(signal.SIGINT)
-                    break
-            assert time.time() < deadline, "no iteration within 150 s"
-        rest = proc.communicate(timeout=120)[0]
+        deadline = time.time() + 300
+        after: list[str] = []
+        while True:
+            try:
+                line = lines.get(timeout=max(deadline - time.time(), 0.01))
+            except queue.Empty:
+                raise AssertionError("no iteration within 300 s") from None
+            assert line is not None, "the trainer exited before its first iteration"
+            if line.startswith("{") and "iteration" in json.loads(line):
+                proc.send_signal(signal.SIGINT)
+                break
+        proc.wait(timeout=240)
+        while (line := lines.get(timeout=30)) is not None:
+            after.append(line)
+        rest = "".join(after)
     finally:
         if proc.poll() is None:
             proc.kill()
