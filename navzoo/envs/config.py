@@ -70,7 +70,9 @@ class NavConfig:
         human_door_turns: door turns in doors that take one person at a time: a pedestrian near the
             next door of its path asks for it and waits beside it while people come through the other
             way; those going the same way follow each other through (:mod:`navzoo.agents.door_turns`).
-            Works with every crowd model but the replay, for kinematic and AMP pedestrians.
+            Works with every crowd model but the replay, for kinematic and AMP pedestrians. ``None``
+            (the default) = on for AMP pedestrians (since 2026-12-06; docs/crowd_log.md, "Door turns for
+            the physics bodies"), off for kinematic ones; ``True`` / ``False`` for both.
         human_radius: pedestrians' disc radius for collisions and observations (m).
         human_body_contacts: also count PyBullet contacts between a robot and a humanoid's limbs
             as collisions (a walking humanoid's hands and feet reach up to ~0.1 m beyond a 0.3 m
@@ -229,7 +231,7 @@ class NavConfig:
     replay_start: float = 0.0
     humans_see_robots: bool = True
     human_yielding: bool = True
-    human_door_turns: bool = False
+    human_door_turns: bool | None = None
     human_radius: float = 0.3
     human_body_contacts: bool = True
     human_contact_penalty: bool = True
@@ -342,8 +344,8 @@ class NavConfig:
             raise bad("humans_see_robots", "a bool")
         if not isinstance(self.human_yielding, bool):
             raise bad("human_yielding", "a bool")
-        if not isinstance(self.human_door_turns, bool):
-            raise bad("human_door_turns", "a bool")
+        if self.human_door_turns is not None and not isinstance(self.human_door_turns, bool):
+            raise bad("human_door_turns", "a bool or None (on for AMP pedestrians only)")
         if self.human_replan_blocked not in ("amp", "all", "off"):
             raise bad("human_replan_blocked", "'amp', 'all' or 'off'")
         if self.human_at_goal not in ("new_goal", "stop"):
@@ -456,6 +458,11 @@ class NavConfig:
         if isinstance(kwargs.get("human_speed"), list):
             kwargs["human_speed"] = tuple(kwargs["human_speed"])
         return cls(**kwargs)
+
+    @property
+    def door_turns(self) -> bool:
+        """Whether door turns are on: ``human_door_turns``, or with ``None`` whether the pedestrians are AMP bodies."""
+        return self.human_model == "amp" if self.human_door_turns is None else self.human_door_turns
 
     def replace(self, **changes: Any) -> NavConfig:
         """A copy with some fields changed (validated like a new config)."""

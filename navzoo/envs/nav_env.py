@@ -390,7 +390,7 @@ class NavEnv(ParallelEnv):
         # physics pedestrians may hold a yield until the other has passed (amp_humans.YIELD_HOLD_S; 0 = off)
         hold = YieldParams(hold_max=AMP_YIELD_HOLD_S) if cfg.human_model == "amp" else None
         self.turn_taking = TurnTaking(H, hold) if cfg.human_yielding and rp is None else None
-        self.door_turns = DoorTurns(H, self.grid.distance_at) if cfg.human_door_turns and rp is None else None
+        self.door_turns = DoorTurns(H, self.grid.distance_at) if cfg.door_turns and rp is None else None
         self._door_paths: list[object] = [None] * H
 
         self.robots.reset(self.pos[:R], self.yaw[:R])

@@ -172,3 +172,19 @@ def test_waiting_spots_stay_on_the_door_side_and_off_narrow_corridors():
     dt.set_route(0, [(np.array([3.45, 6.0]), np.array([0.0, -1.0]))])
     dt.update(0.0, np.array([[3.45, 7.0]]))
     assert dt.granted[0] == door  # asking from the corridor side: granted at once
+
+
+def test_door_turns_default_on_for_amp_pedestrians_only():
+    assert NavConfig().door_turns is False
+    assert NavConfig(human_model="amp").door_turns is True  # the default since 2026-12-06
+    assert NavConfig(human_model="amp", human_door_turns=False).door_turns is False
+    assert NavConfig(human_door_turns=True).door_turns is True
+    env = NavEnv(scene="doorway", n_robots=0, n_humans=6, human_model="amp", crowd_model="sfm", time_limit=5.0)
+    env.reset(seed=0)
+    assert env.door_turns is not None and env.door_turns.n_doors == 1  # the AMP target rollouts wait their turn
+    env.close()
+    env = NavEnv(scene="doorway", n_robots=0, n_humans=6, human_model="amp", crowd_model="sfm", time_limit=5.0,
+                 human_door_turns=False)
+    env.reset(seed=0)
+    assert env.door_turns is None
+    env.close()
