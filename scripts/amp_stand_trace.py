@@ -29,7 +29,8 @@ distance of those points from a standing body (``target_points_m``; the controll
 toward slow targets behind it: scripts/amp_slow_target_probe.py). ``--const NAME=VALUE`` sets an upper-case numeric
 or boolean constant of ``navzoo.envs.amp_humans`` for the run (e.g. ``--const STALL_WARP_S=1.0``). A diagnostic: the
 counts depend on the seed, and it says where person-time goes, not why a policy acts. ``--resummarize TRACE.json``
-prints the summary of an earlier trace's samples again, from ``--after`` seconds on and of ``--person`` only.
+prints the summary of an earlier trace's samples again, from ``--after`` seconds on, of ``--person`` only and
+within ``--box X0,Y0,X1,Y1`` (m) only.
 """
 
 from __future__ import annotations
@@ -166,9 +167,12 @@ def load_trace(path: str) -> dict:
     return json.loads(Path(path).read_text())
 
 
-def window(samples: list[dict], after: float | None = None, people: list[int] | None = None) -> list[dict]:
-    """The samples from ``after`` seconds on, of the persons ``people`` (None: all)."""
-    return [s for s in samples if (after is None or s["t"] >= after) and (people is None or s["id"] in people)]
+def window(samples: list[dict], after: float | None = None, people: list[int] | None = None,
+           box: tuple[float, float, float, float] | None = None) -> list[dict]:
+    """The samples from ``after`` seconds on, of the persons ``people`` (None: all), inside ``box``
+    (x0, y0, x1, y1; None: anywhere)."""
+    return [s for s in samples if (after is None or s["t"] >= after) and (people is None or s["id"] in people)
+            and (box is None or (box[0] <= s["x"] <= box[2] and box[1] <= s["y"] <= box[3]))]
 
 
 def plot(result: dict, out: str) -> None:
@@ -244,6 +248,8 @@ def main() -> None:
                     help="print the summary of an earlier trace's samples (with --after, --person) and stop")
     ap.add_argument("--after", type=float, default=None, help="with --resummarize: only samples from this time (s)")
     ap.add_argument("--person", default=None, help="with --resummarize: only these persons (comma-separated)")
+    ap.add_argument("--box", default=None, metavar="X0,Y0,X1,Y1",
+                    help="with --resummarize: only samples inside this rectangle (m)")
     ap.add_argument("--plot", default=None, help="PNG top view of the standing samples")
     ap.add_argument("--plot-contacts", nargs="+", default=None, metavar="TRACE.json",
                     help="only draw the wall contacts of earlier traces (--out files), side by side, into --out (PNG)")
@@ -253,7 +259,15 @@ def main() -> None:
             people = [int(x) for x in args.person.split(",")] if args.person else None
         except ValueError:
             ap.error(f"--person {args.person!r}: expected comma-separated person numbers")
-        samples = window(load_trace(args.resummarize)["samples"], args.after, people)
+        box = None
+        if args.box:
+            try:
+                box = tuple(float(x) for x in args.box.split(","))
+            except ValueError:
+                box = ()
+            if len(box) != 4 or not (box[0] < box[2] and box[1] < box[3]):
+                ap.error(f"--box {args.box!r}: expected X0,Y0,X1,Y1 with X0 < X1 and Y0 < Y1")
+        samples = window(load_trace(args.resummarize)["samples"], args.after, people, box)
         print(json.dumps(summarize(samples), indent=1))
         return
     if args.out is None:

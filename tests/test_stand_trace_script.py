@@ -88,3 +88,12 @@ def test_a_window_of_samples_is_summarized_again():
     s = st.summarize(st.window(samples, people=[5]))
     assert s["standing_share"] == pytest.approx(0.5)
     assert s["standing_medians"] == {"target_speed": pytest.approx(0.02), "nearest_m": pytest.approx(1.4)}
+
+
+def test_a_box_keeps_the_samples_inside_it():
+    samples = [dict(_sample(), x=25.0, y=5.0, t=1.0, id=0, cause="target stands", narrow=True),
+               dict(_sample(), x=25.0, y=3.0, t=1.0, id=1, cause=None, narrow=False),
+               dict(_sample(), x=28.0, y=6.2, t=1.0, id=2, cause=None, narrow=False)]
+    assert [s["id"] for s in st.window(samples, box=(23.9, 4.5, 27.8, 6.2))] == [0]
+    assert [s["id"] for s in st.window(samples, box=(23.9, 4.5, 28.0, 6.2))] == [0, 2]  # edges count
+    assert len(st.window(samples)) == 3
