@@ -46,6 +46,7 @@ apply to both, such as ``human_replan_blocked=all``).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import multiprocessing as mp
 import sys
@@ -81,9 +82,13 @@ def parse_config(text: str) -> dict:
     from navzoo.benchmark.pedestrians import check_env_overrides
     from navzoo.envs.config import NavConfig
 
+    fields = {f.name: f for f in dataclasses.fields(NavConfig)}
     for flag in cfg["env_flags"]:
         name, eq, _ = flag.partition("=")
-        if not eq and not isinstance(getattr(NavConfig(), name, None), bool):
+        field = fields.get(name)
+        # a boolean field, or one that is a bool or None (human_door_turns: None = on for AMP pedestrians)
+        if not eq and not (field is not None and (isinstance(field.default, bool)
+                                                  or str(field.type).replace(" ", "") == "bool|None")):
             raise ValueError(f"{flag!r} is not a boolean NavConfig field (give other fields as name=value), in {text!r}")
     try:  # a field NavConfig lacks, one the protocol sets, or a value it refuses is named here, before any run
         check_env_overrides(env_overrides(cfg["env_flags"]))

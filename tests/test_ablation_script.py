@@ -119,6 +119,11 @@ def test_word_valued_config_fields_are_set_and_checked():
         ablation.parse_config("c:0.1:0.1:4:2.0:human_door_entries=yes")
     with pytest.raises(ValueError, match="boolean"):
         ablation.parse_config("c:0.1:0.1:4:2.0:human_replan_blocked")
+    # a field that is a bool or None (None: on for AMP pedestrians) turns on by name, and off as name=false
+    assert ablation.env_overrides(ablation.parse_config("c:0.1:0.1:4:2.0:human_door_turns")["env_flags"]) == \
+        {"human_door_turns": True}
+    assert ablation.env_overrides(ablation.parse_config("c:0.1:0.1:4:2.0:human_door_turns=false")["env_flags"]) == \
+        {"human_door_turns": False}
 
 
 def test_numeric_and_boolean_config_fields_take_their_types():
