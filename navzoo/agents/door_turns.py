@@ -27,7 +27,10 @@ turn-taking does:
   asks again, last in the queue), so a person stuck elsewhere does not close a door for good;
 * someone already in a door (within ``throat`` of its centre) holds it, granted or not, and so does
   one who asks from a side with no waiting spot out of the door's lane (a door off a narrow corridor,
-  where a waiting person would block the corridor): the other side waits for it.
+  where a waiting person would block the corridor): the other side waits for it. With
+  ``DoorParams.no_room_waits`` the latter takes the door only while nobody holds it the other way, and else
+  stops ``wait`` short of it, in the corridor (off by default; ``amp_humans.DOOR_NO_ROOM_WAITS`` for AMP
+  pedestrians).
 
 Everything is deterministic and vectorised over people where it matters. Kinematic pedestrians get
 the edited preferred velocity at every step; the target rollouts of AMP pedestrians apply it at the
@@ -59,6 +62,10 @@ class DoorParams:
         grant_max_s: a grant that has not got its holder through within this long ends (s).
         merge: doors found on different paths whose centres are closer than this are one door (m).
         spot_clearance: the waiting spot keeps at least this distance from walls (m).
+        no_room_waits: a person coming from a side with no waiting spot (a door off a narrow passage) takes the
+            door at once only while nobody holds it the other way; otherwise it stops ``wait`` from the door's
+            centre, in the passage, until the door is free (False: it always takes the door at once, so the
+            passage stays clear and the two ways may meet in the door).
     """
 
     approach: float = 2.5
@@ -70,6 +77,7 @@ class DoorParams:
     grant_max_s: float = 10.0
     merge: float = 0.6
     spot_clearance: float = 0.35
+    no_room_waits: bool = False
 
     def __post_init__(self) -> None:
         for name in ("approach", "wait", "passed", "throat", "platoon_s", "grant_max_s", "merge", "spot_clearance"):
@@ -237,6 +245,12 @@ class DoorTurns:
         # someone in the door holds it, and so does one who has nowhere to wait
         no_room = np.array([cur[j] >= 0 and not self.can_queue(int(cur[j]), int(sign[j])) for j in range(self.n)],
                            dtype=bool)
+        if p.no_room_waits and no_room.any():
+            held = np.zeros(self.n_doors, dtype=int)  # the way each door is held (0: free)
+            holders = np.flatnonzero(self.granted >= 0)
+            held[self.granted[holders]] = sign[holders]
+            way = held[np.maximum(cur, 0)]
+            no_room &= (way == 0) | (way == sign)
         inside = asking & ((dist < p.throat) | no_room)
         self.granted[inside], self.grant_t[inside] = cur[inside], t
         new |= inside
@@ -282,10 +296,14 @@ class DoorTurns:
         against = (held_way[idx] != 0) & (held_way[idx] != sign)
         queued = self.waiting() & has
         wait = (queued | (near & against)) & (dist >= p.throat)
-        wait &= np.array([w and self.can_queue(int(cur[j]), int(sign[j])) for j, w in enumerate(wait)], dtype=bool)
-        if not wait.any():
+        room = np.array([w and self.can_queue(int(cur[j]), int(sign[j])) for j, w in enumerate(wait)], dtype=bool)
+        # no_room_waits: one with nowhere to queue stops short of a door held against it, in the passage
+        stop = wait & ~room & (dist <= p.wait) if p.no_room_waits else np.zeros(self.n, dtype=bool)
+        wait &= room
+        if not (wait.any() or stop.any()):
             return pref
         out = np.array(pref, dtype=np.float64, copy=True)
+        out[stop] = 0.0
         for j in np.flatnonzero(wait):
             d_j, s_j = int(cur[j]), int(sign[j])
             line = queued & (cur == d_j) & (sign == s_j)

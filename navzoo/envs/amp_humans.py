@@ -116,6 +116,11 @@ DIFFUSION_LOOKAHEAD_S = 0.4
 # 0.004, agent contacts 0.170 / 0.102 / 0.060 / 0.028 and timeouts 0.094 / 0.117 / 0.146 / 0.158; on two
 # seeds not used to choose (4, 5) 1.0 against 1.3: 0.834 / 0.808 against 0.715 / 0.771.
 DIFFUSION_SPEED_CAP = 1.0
+# Door turns (NavConfig.human_door_turns, on for AMP pedestrians): whether a person coming from a side of a door with
+# no waiting spot (a door off a narrow passage) stops short of the door while it is held the other way, instead of
+# taking it at once (agents.door_turns.DoorParams.no_room_waits). An option, off; crowd_log.md, "Door turns for the
+# physics bodies".
+DOOR_NO_ROOM_WAITS = False
 # Plans are sampled from each person's recent past, so a body that has stopped (a yield, a push, a jam at a door)
 # gets slow plans; its target then creeps (the rollout toward a slow plan, slowed further by a jamb the body stands
 # next to) and the controller does not walk toward a target that slow, least of all one behind it (a lone body

@@ -188,3 +188,49 @@ def test_door_turns_default_on_for_amp_pedestrians_only():
     env.reset(seed=0)
     assert env.door_turns is None
     env.close()
+
+
+def _narrow_east(points: np.ndarray) -> np.ndarray:
+    """A door between an open room (x < 0) and a narrow passage (x > 0.3): no waiting spot on the passage side."""
+    return np.where(np.asarray(points)[:, 0] > 0.3, 0.2, 5.0)
+
+
+@pytest.mark.parametrize("no_room_waits", [False, True])
+def test_the_side_without_room_waits_only_with_no_room_waits(no_room_waits):
+    dt = DoorTurns(2, _narrow_east, DoorParams(no_room_waits=no_room_waits))
+    dt.set_route(0, [(CENTRE, AXIS)])  # from the room into the passage
+    dt.set_route(1, [(CENTRE, -AXIS)])  # from the passage into the room
+    assert dt.can_queue(0, 1) and not dt.can_queue(0, -1)
+    pos = np.array([[-1.0, 0.0], [6.0, 0.0]])
+    dt.update(0.0, pos)
+    assert dt.granted[0] == 0  # the room side holds the door
+    pos[1] = [1.2, 0.0]
+    dt.update(0.1, pos)
+    pref = np.array([[1.0, 0.0], [-1.0, 0.0]])
+    if not no_room_waits:
+        assert dt.granted[1] == 0  # it takes the door at once: the two ways meet in it
+        np.testing.assert_allclose(dt.apply(pos, pref, np.ones(2)), pref)
+        return
+    assert dt.granted[1] == -1 and dt.waiting()[1]
+    out = dt.apply(pos, pref, np.ones(2))
+    np.testing.assert_allclose(out[0], pref[0])
+    np.testing.assert_allclose(out[1], 0.0)  # stops in the passage, 1.2 m from the door
+    further = dt.apply(np.array([[-1.0, 0.0], [2.0, 0.0]]), pref, np.ones(2))
+    np.testing.assert_allclose(further[1], pref[1])  # walks on until it is `wait` from the door
+    pos[0] = [0.8, 0.0]  # through
+    dt.update(0.2, pos)
+    assert dt.granted[1] == 0
+
+
+def test_amp_pedestrians_door_params_follow_the_constant(monkeypatch):
+    from navzoo.envs import amp_humans
+
+    monkeypatch.setattr(amp_humans, "DOOR_NO_ROOM_WAITS", True)
+    env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp", crowd_model="sfm", time_limit=5.0)
+    env.reset(seed=0)
+    assert env.door_turns.params.no_room_waits
+    env.close()
+    kin = NavEnv(scene="doorway", n_robots=0, n_humans=2, crowd_model="sfm", human_door_turns=True)
+    kin.reset(seed=0)
+    assert not kin.door_turns.params.no_room_waits  # kinematic crowds keep the rule as it was
+    kin.close()
