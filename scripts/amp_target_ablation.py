@@ -46,10 +46,10 @@ apply to both, such as ``human_replan_blocked=all``).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import multiprocessing as mp
 import sys
+import typing
 from pathlib import Path
 
 
@@ -82,13 +82,11 @@ def parse_config(text: str) -> dict:
     from navzoo.benchmark.pedestrians import check_env_overrides
     from navzoo.envs.config import NavConfig
 
-    fields = {f.name: f for f in dataclasses.fields(NavConfig)}
+    hints = typing.get_type_hints(NavConfig)
     for flag in cfg["env_flags"]:
         name, eq, _ = flag.partition("=")
-        field = fields.get(name)
         # a boolean field, or one that is a bool or None (human_door_turns: None = on for AMP pedestrians)
-        if not eq and not (field is not None and (isinstance(field.default, bool)
-                                                  or str(field.type).replace(" ", "") == "bool|None")):
+        if not eq and hints.get(name) not in (bool, bool | None):
             raise ValueError(f"{flag!r} is not a boolean NavConfig field (give other fields as name=value), in {text!r}")
     try:  # a field NavConfig lacks, one the protocol sets, or a value it refuses is named here, before any run
         check_env_overrides(env_overrides(cfg["env_flags"]))

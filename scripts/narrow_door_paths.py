@@ -22,8 +22,9 @@ import json
 import numpy as np
 
 from navzoo.benchmark.pedestrians import HELDOUT_SCENES, SCENES, parse_scene_counts, people_per_scene
-from navzoo.envs.amp_humans import WALL_PLAN_MARGIN, narrow_points
+from navzoo.envs.amp_humans import WALL_PLAN_MARGIN
 from navzoo.envs.nav_env import NavEnv
+from navzoo.world.planner import resample_polyline
 
 
 def scene_list(text: str) -> list[tuple[str, int]]:
@@ -50,7 +51,7 @@ def count(scene: str, people: int, seeds: int, reach: float = 1.5) -> dict:
             narrow = env.amp.narrow_passages(paths, env.radius[h], WALL_PLAN_MARGIN)  # the keep-right rule's doors
             for path, (pts, c) in zip(paths, narrow, strict=True):
                 total += 1
-                dense, _ = narrow_points(path, lambda x: np.zeros(len(x)), 1.0)  # the path every 5 cm
+                dense = resample_polyline(np.asarray(path, dtype=float).reshape(-1, 2), 0.05)  # every 5 cm
                 if len(pts):
                     with_narrow += 1
                     clearance = min(clearance, float(c.min()))

@@ -204,6 +204,14 @@ class DoorTurns:
         self.grant_t[who] = -np.inf
         self.request_t[who] = np.inf
 
+    def _held_ways(self, sign: np.ndarray) -> np.ndarray:
+        """(n_doors,) the way each door is held (the sign of its holders' crossing; 0: free), given each person's
+        ``sign`` of crossing its next door."""
+        held = np.zeros(self.n_doors, dtype=int)
+        holders = np.flatnonzero(self.granted >= 0)
+        held[self.granted[holders]] = sign[holders]
+        return held
+
     def _next_door(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Advance every route past the doors already crossed; (next door or -1, sign of its crossing)."""
         cur = np.full(self.n, -1)
@@ -246,10 +254,7 @@ class DoorTurns:
         no_room = np.array([cur[j] >= 0 and not self.can_queue(int(cur[j]), int(sign[j])) for j in range(self.n)],
                            dtype=bool)
         if p.no_room_waits and no_room.any():
-            held = np.zeros(self.n_doors, dtype=int)  # the way each door is held (0: free)
-            holders = np.flatnonzero(self.granted >= 0)
-            held[self.granted[holders]] = sign[holders]
-            way = held[np.maximum(cur, 0)]
+            way = self._held_ways(sign)[np.maximum(cur, 0)]
             no_room &= (way == 0) | (way == sign)
         inside = asking & ((dist < p.throat) | no_room)
         self.granted[inside], self.grant_t[inside] = cur[inside], t
@@ -289,9 +294,7 @@ class DoorTurns:
         dist = np.linalg.norm(pos - c, axis=1)
         along = np.einsum("ij,ij->i", pos - c, self.axes[np.maximum(cur, 0)]) * sign
         near = has & (dist < p.approach) & (along < p.passed) & (self.granted < 0)
-        held_way = np.zeros(self.n_doors, dtype=int)
-        holders = np.flatnonzero(self.granted >= 0)
-        held_way[self.granted[holders]] = sign[holders]
+        held_way = self._held_ways(sign)
         idx = np.maximum(cur, 0)
         against = (held_way[idx] != 0) & (held_way[idx] != sign)
         queued = self.waiting() & has
