@@ -6,8 +6,8 @@
 
 Runs one scene as ``navzoo eval pedestrians`` does (``navzoo.benchmark.pedestrians._make``: the shipped AMP
 policy, today's target settings, no robot) and samples every ``--every`` s each standing (not fallen) person:
-its speed over the last sample interval, the distance from its body to its own target point
-(``env.amp.target_now()``), the target point's speed, its wall and people contacts at that step, the distance
+its speed over the last sample interval, its goal and next A* waypoint, the distance from its body to its own
+target point (``env.amp.target_now()``), the target point's speed, its wall and people contacts at that step, the distance
 to the nearest other person and the clearance of its position (``Scene.clearance``). A person who moved less
 than ``--still`` m/s is *standing*, and each standing sample gets one cause, first match wins:
 
@@ -28,7 +28,12 @@ the standing samples by it: ``behind`` (more than 90 degrees off), ``side`` (45-
 distance of those points from a standing body (``target_points_m``; the controller walks off slowly, or not at all,
 toward slow targets behind it: scripts/amp_slow_target_probe.py). ``--const NAME=VALUE`` sets an upper-case numeric
 or boolean constant of ``navzoo.envs.amp_humans`` for the run (e.g. ``--const STALL_WARP_S=1.0``). A diagnostic: the
-counts depend on the seed, and it says where person-time goes, not why a policy acts. ``--resummarize TRACE.json``
+counts depend on the seed, and it says where person-time goes, not why a policy acts. With door turns on
+(``NavConfig.human_door_turns``) each sample also records the person's door turn (:func:`door_state`), and the
+summary's ``doors`` splits the standing samples within ``DOOR_NEAR_M`` of the person's next door by it. The
+summary's ``waypoint_hidden`` is the share of samples whose next A* waypoint is out of the person's line of sight
+(:func:`waypoint_hidden`: a body pushed past an obstacle, its waypoint behind it), ``standing_waypoint_hidden`` the
+share standing so. ``--resummarize TRACE.json``
 prints the summary of an earlier trace's samples again, from ``--after`` seconds on, of ``--person`` only and
 within ``--box X0,Y0,X1,Y1`` (m) only.
 """
@@ -48,6 +53,7 @@ NEAR_TARGET_M = 0.4
 NEAR_PERSON_M = 0.9
 NARROW_M = 0.6
 PASSING_M = 1.5
+DOOR_NEAR_M = 3.0
 
 
 def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, every: float, still: float,
@@ -82,6 +88,7 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, every:
             d = np.linalg.norm(pos[:, None] - pos[None], axis=2)
             np.fill_diagonal(d, np.inf)
             clear = env.scene.clearance(pos)
+            goal, wp = env.goal[h], env.next_waypoints()[h]
             for j in range(len(h)):
                 if env.human_fallen[j]:
                     continue
@@ -92,6 +99,8 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, every:
                     "agent": bool(env.human_agent_contact[j]),
                     "nearest_m": float(d[j].min()) if len(h) > 1 else float("inf"), "clearance": float(clear[j]),
                     "target_bearing_deg": float(bearing[j]), "target_points_m": float(np.linalg.norm(ahead[j])),
+                    "goal": [round(float(v), 2) for v in goal[j]], "waypoint": [round(float(v), 2) for v in wp[j]],
+                    **door_state(env.door_turns, j, pos[j]),
                 })
         goals = int(env.goals_reached[h].sum())
         wrapped.close()
@@ -102,7 +111,52 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, every:
             "env_overrides": env_overrides or {},
             "seconds": seconds, "seed": seed, "every_s": dt_s,
             "still_mps": still, "goals": goals, "wall_s": round(time.time() - t0, 1), "samples": samples,
-            "summary": summarize(samples)}
+            "summary": {**summarize(samples),
+                        **sight_summary(samples, waypoint_hidden(scene, samples,
+                                                                 (env_overrides or {}).get("human_radius", 0.3)))}}
+
+
+def door_state(turns, j: int, pos: np.ndarray) -> dict:
+    """Person ``j``'s door turns at the last update (``NavConfig.human_door_turns``; {} when off): ``door`` (its next
+    door on its path, -1: none), ``door_m`` (distance to that door's centre), ``door_state`` (``held``: it holds the
+    door; ``waits``: it asked and was not granted; ``against``: the door is held the other way and it does not hold
+    it; ``free`` otherwise; ``none`` without a next door) and ``door_room`` (whether its side has a waiting spot)."""
+    if turns is None:
+        return {}
+    d, g = int(turns._cur[j]), int(turns._sign[j])
+    if d < 0:
+        return {"door": -1, "door_m": float("inf"), "door_state": "none", "door_room": False}
+    held = turns._held_ways(turns._sign)[d]
+    state = ("held" if turns.granted[j] == d else "waits" if bool(turns.waiting()[j])
+             else "against" if held not in (0, g) else "free")
+    return {"door": d, "door_m": float(np.linalg.norm(pos - turns.centres[d])), "door_state": state,
+            "door_room": bool(turns.can_queue(d, g))}
+
+
+def waypoint_hidden(scene: str, samples: list[dict], human_radius: float = 0.3) -> list[bool | None]:
+    """For each sample with a ``waypoint`` (traces since 2026-12-06): whether that next A* waypoint was out of the
+    person's line of sight on the scene's bare planning grid for a pedestrian of ``human_radius`` (the A* planner's
+    ``line_of_sight`` from the nearest free point, as ``NavConfig.human_replan_blocked`` tests it; fallen bodies are
+    not on that grid). None for samples without a waypoint or off the grid."""
+    from navzoo.envs.nav_env import NavEnv
+
+    env = NavEnv(scene=scene, n_robots=0, n_humans=1, human_model="kinematic", human_radius=human_radius)
+    planner = env._planner(float(human_radius))
+    out: list[bool | None] = []
+    for x in samples:
+        start = planner._snap(np.array([x["x"], x["y"]])) if "waypoint" in x else None
+        out.append(None if start is None else not planner.line_of_sight(start[0], np.asarray(x["waypoint"])))
+    env.close()
+    return out
+
+
+def sight_summary(samples: list[dict], hidden: list[bool | None]) -> dict:
+    """Shares of all samples whose next waypoint is hidden (:func:`waypoint_hidden`), and of those standing."""
+    n = len(samples)
+    return {"waypoint_hidden": sum(bool(h) for h in hidden) / n if n else 0.0,
+            "standing_waypoint_hidden": sum(bool(h) and s["cause"] is not None for s, h in zip(samples, hidden,
+                                                                                             strict=True)) / n
+            if n else 0.0}
 
 
 def parse_const(items: list[str]) -> dict[str, float | int | bool]:
@@ -151,6 +205,12 @@ def summarize(samples: list[dict]) -> dict:
                                         if stand else float("nan"))
     out["standing_medians"] = {k: float(np.median([x[k] for x in stand])) if stand else float("nan")
                                for k in ("target_speed", "nearest_m")}
+    near = [x for x in stand if x.get("door_m", np.inf) < DOOR_NEAR_M]
+    if any("door_state" in x for x in samples):  # door turns on: the states of standing samples near a door
+        out["doors"] = {"standing_near_door": len(near) / n if n else 0.0,
+                        **{f"{st}, {'room' if room else 'no room'}":
+                           sum(x["door_state"] == st and x["door_room"] == room for x in near) / n if n else 0.0
+                           for st in ("held", "waits", "against", "free") for room in (True, False)}}
     out["walls"] = {"contact_share": len(wall) / n if n else 0.0,
                     "passing": len(passing) / n if n else 0.0, "alone": (len(wall) - len(passing)) / n if n else 0.0,
                     "standing": sum(s["cause"] is not None for s in wall) / n if n else 0.0}
@@ -267,8 +327,13 @@ def main() -> None:
                 box = ()
             if len(box) != 4 or not (box[0] < box[2] and box[1] < box[3]):
                 ap.error(f"--box {args.box!r}: expected X0,Y0,X1,Y1 with X0 < X1 and Y0 < Y1")
-        samples = window(load_trace(args.resummarize)["samples"], args.after, people, box)
-        print(json.dumps(summarize(samples), indent=1))
+        tr = load_trace(args.resummarize)
+        samples = window(tr["samples"], args.after, people, box)
+        summary = summarize(samples)
+        if samples and "waypoint" in samples[0]:
+            summary.update(sight_summary(samples, waypoint_hidden(
+                tr["scene"], samples, tr.get("env_overrides", {}).get("human_radius", 0.3))))
+        print(json.dumps(summary, indent=1))
         return
     if args.out is None:
         ap.error("--out is required")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from tests.script_modules import load_script
@@ -72,6 +73,9 @@ def test_a_short_trace_of_physics_pedestrians(tmp_path):
     assert all((s["cause"] is None) == (s["speed"] >= 0.15) for s in r["samples"])
     assert all(-180.0 <= s["target_bearing_deg"] <= 180.0 and s["target_points_m"] >= 0 for s in r["samples"])
     assert set(r["summary"]["facing"]) == {"behind", "side", "ahead", "target_points_m"}
+    assert all(len(s["goal"]) == 2 and len(s["waypoint"]) == 2 for s in r["samples"])
+    assert all(s["door_state"] in ("none", "held", "waits", "against", "free") for s in r["samples"])  # AMP: door turns on
+    assert 0.0 <= r["summary"]["standing_waypoint_hidden"] <= r["summary"]["waypoint_hidden"] <= 1.0
     st.plot(r, str(tmp_path / "t.png"))
     assert (tmp_path / "t.png").stat().st_size > 1000
     st.plot_contacts([r, r], str(tmp_path / "c.png"))
@@ -97,3 +101,53 @@ def test_a_box_keeps_the_samples_inside_it():
     assert [s["id"] for s in st.window(samples, box=(23.9, 4.5, 27.8, 6.2))] == [0]
     assert [s["id"] for s in st.window(samples, box=(23.9, 4.5, 28.0, 6.2))] == [0, 2]  # edges count
     assert len(st.window(samples)) == 3
+
+
+def test_door_state_of_a_person_at_a_door():
+    from navzoo.agents.door_turns import DoorTurns
+
+    turns = DoorTurns(3, lambda p: np.full(len(p), 2.0))  # open floor: both sides have waiting spots
+    door = (np.array([0.0, 0.0]), np.array([1.0, 0.0]))
+    for j in range(3):
+        turns.set_route(j, [door])
+    turns.set_route(2, [(door[0], -door[1])])  # person 2 crosses the other way
+    pos = np.array([[-1.0, 0.0], [-2.0, 0.3], [2.0, 0.0]])
+    turns.update(0.0, pos)
+    assert st.door_state(None, 0, pos[0]) == {}
+    s0, s1, s2 = (st.door_state(turns, j, pos[j]) for j in range(3))
+    assert s0 == {"door": 0, "door_m": pytest.approx(1.0), "door_state": "held", "door_room": True}
+    assert s1["door_state"] == "held"  # follows the first through, the same way
+    assert s2["door_state"] == "waits"  # asked from the other side and was not granted
+    far = np.array([9.0, 0.0])
+    turns2 = DoorTurns(1, lambda p: np.full(len(p), 2.0))
+    turns2.update(0.0, far[None])
+    assert st.door_state(turns2, 0, far)["door_state"] == "none"
+
+
+def test_standing_samples_near_doors_are_split_by_door_state():
+    samples = [dict(_sample(door=0, door_m=1.0, door_state="waits", door_room=True), cause="target stands", narrow=True),
+               dict(_sample(door=0, door_m=1.0, door_state="held", door_room=False), cause="person near", narrow=True),
+               dict(_sample(door=0, door_m=9.0, door_state="free", door_room=True), cause="person near", narrow=False),
+               dict(_sample(door=-1, door_m=float("inf"), door_state="none", door_room=False), cause=None,
+                    narrow=False)]
+    d = st.summarize(samples)["doors"]
+    assert d["standing_near_door"] == pytest.approx(0.5)
+    assert d["waits, room"] == pytest.approx(0.25) and d["held, no room"] == pytest.approx(0.25)
+    assert d["free, room"] == 0.0  # standing, but beyond DOOR_NEAR_M
+    assert "doors" not in st.summarize([dict(_sample(), cause=None, narrow=False)])  # door turns off
+
+
+def test_a_waypoint_behind_a_wall_is_hidden():
+    # the doorway scene: a wall with one door across the middle (x = 8 m); a waypoint straight across the wall is
+    # hidden, one on the same side is not; samples without a waypoint get None
+    from navzoo.world.library import get_scene
+
+    scene = get_scene("doorway")
+    assert scene is not None
+    samples = [dict(x=6.0, y=1.0, waypoint=[10.0, 1.0], cause="target stands"),
+               dict(x=6.0, y=1.0, waypoint=[6.0, 2.5], cause=None),
+               dict(x=6.0, y=1.0, cause=None)]
+    hidden = st.waypoint_hidden("doorway", samples)
+    assert hidden == [True, False, None]
+    assert st.sight_summary(samples, hidden) == {"waypoint_hidden": pytest.approx(1 / 3),
+                                                 "standing_waypoint_hidden": pytest.approx(1 / 3)}
