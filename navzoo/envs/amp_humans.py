@@ -163,7 +163,8 @@ WAYPOINT_LOOKAHEAD = 4
 # path, while they can see the next one (advance_waypoint's ``visible``). Off: over 4 seeds of the
 # following protocol (device machine, docs/pedestrians_log.md "Skipping passed waypoints") success moved by
 # -6.8 to +9.0 points per seed, pooled 0.573 -> 0.579 with social-force targets and 0.659 -> 0.653 with
-# diffusion targets, with a few more falls: within what the seeds scatter.
+# diffusion targets, with a few more falls: within what the seeds scatter. Held out, with the defaults of
+# 2026-12-06 (device, seeds 0-7, docs/crowd_log.md "Skipping passed waypoints, held out"): level as well.
 SKIP_PASSED_WAYPOINTS = False
 # How the social-force rollouts keep PLAN_MARGIN between people. False: on the radius, which also makes the
 # social repulsion exp(2 x 0.1 / 0.3) = 1.95 times stronger at every distance; in the lobby (15 people,
