@@ -121,6 +121,12 @@ DIFFUSION_SPEED_CAP = 1.0
 # taking it at once (agents.door_turns.DoorParams.no_room_waits). An option, off; crowd_log.md, "Door turns for the
 # physics bodies".
 DOOR_NO_ROOM_WAITS = False
+# Door turns find the doors of a path with navzoo.envs.doors.path_doors, which checks for jambs on both sides at the
+# path's narrowest point. A path that enters a door slantwise has that point up to 0.2 m off the jamb line, and the
+# door is missed for that path (the doorway: 11 of 60 sampled paths; the bottleneck 12, the cluttered room 17, the
+# home 6; docs/crowd_log.md "Doors that paths enter slantwise"). DOOR_JAMB_SEARCH > 0 looks for the jambs up to that
+# far along the door's axis (path_doors' jamb_search). An option, off until measured on eight seeds of both scene sets.
+DOOR_JAMB_SEARCH = 0.0
 # Plans are sampled from each person's recent past, so a body that has stopped (a yield, a push, a jam at a door)
 # gets slow plans; its target then creeps (the rollout toward a slow plan, slowed further by a jamb the body stands
 # next to) and the controller does not walk toward a target that slow, least of all one behind it (a lone body

@@ -54,7 +54,7 @@ def door_axis(grid: OccupancyGrid, centre: np.ndarray, clearance: float) -> np.n
 
 def path_doors(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, half_width: float = DOOR_HALF_WIDTH,
                max_length: float = DOOR_MAX_LENGTH, two_sided: bool = False,
-               end_margin: float = 0.0) -> list[tuple[np.ndarray, np.ndarray, float]]:
+               end_margin: float = 0.0, jamb_search: float = 0.0) -> list[tuple[np.ndarray, np.ndarray, float]]:
     """The doors that ``path`` (K, 2), walked from ``start``, passes, in the order it passes them.
 
     A door is a stretch of the path no longer than ``max_length`` where the clearance (distance to the
@@ -66,7 +66,12 @@ def path_doors(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, half_wi
     the centre along the wall). ``two_sided`` keeps only passages with an obstacle on either side across
     the axis, each within ``2 * half_width`` of the centre and together less than ``2 * half_width + 0.1``
     m apart: a door or a gap between two obstacles, not a wall walked along. ``end_margin`` leaves out
-    doors closer than that to either end of the path (start or goal).
+    doors closer than that to either end of the path (start or goal). ``jamb_search`` (m, with ``two_sided``):
+    a path that enters a door slantwise has its narrowest point off the door's jamb line (up to 0.2 m into the
+    room beyond a 1.0 m door), where one side finds no jamb; such a door is then looked for at points up to this
+    far along its axis, and its centre moves to the first one with jambs on both sides (0: the narrowest point
+    only, so such doors are missed; docs/crowd_log.md, "Door turns for the physics bodies": the warehouse's
+    office door).
     """
     path = np.asarray(path, dtype=np.float64).reshape(-1, 2)
     line = np.concatenate([np.asarray(start, dtype=np.float64).reshape(1, 2), path])
@@ -89,10 +94,29 @@ def path_doors(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, half_wi
         centre = pts[m]
         if end_margin > 0 and min(np.linalg.norm(centre - line[0]), np.linalg.norm(centre - line[-1])) < end_margin:
             continue
-        if two_sided and _passage_width(grid, centre, axis, 2.0 * half_width) >= 2.0 * half_width + 0.1:
-            continue
+        if two_sided:
+            centre = _jamb_centre(grid, centre, axis, half_width, jamb_search)
+            if centre is None:
+                continue
         out.append((centre.copy(), axis, float(d[m])))
     return out
+
+
+def _jamb_centre(grid: OccupancyGrid, centre: np.ndarray, axis: np.ndarray, half_width: float,
+                 search: float) -> np.ndarray | None:
+    """``centre`` when the passage across ``axis`` there is narrower than ``2 * half_width + 0.1`` m with an
+    obstacle on either side; else the nearest point up to ``search`` m along the axis (either way, in steps of
+    half a cell) where it is; None when there is none."""
+    limit = 2.0 * half_width + 0.1
+    if _passage_width(grid, centre, axis, 2.0 * half_width) < limit:
+        return centre
+    step = 0.5 * grid.resolution
+    for k in range(1, int(np.floor(search / step + 1e-9)) + 1):
+        for sgn in (1.0, -1.0):
+            p = centre + sgn * k * step * axis
+            if _passage_width(grid, p, axis, 2.0 * half_width) < limit:
+                return p
+    return None
 
 
 def _passage_width(grid: OccupancyGrid, centre: np.ndarray, axis: np.ndarray, reach: float) -> float:

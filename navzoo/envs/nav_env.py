@@ -959,8 +959,9 @@ class NavEnv(ParallelEnv):
             if self._door_paths[j] is not self.paths[i]:
                 self._door_paths[j] = self.paths[i]
                 rest = self.paths[i][int(self.wp_index[i]):]
+                jambs = float(amp_humans.DOOR_JAMB_SEARCH) if self.config.human_model == "amp" else 0.0
                 self.door_turns.set_route(j, [(c, a) for c, a, _ in path_doors(rest, self.pos[i], self.grid, two_sided=True,
-                                                                                    end_margin=0.7)])
+                                                                                    end_margin=0.7, jamb_search=jambs)])
         return self.door_turns.update(t, self.pos[R:], ~self.arrived[R:] & ~self.human_fallen)
 
     def _avoid_fallen(self, fallen: np.ndarray) -> bool:

@@ -137,6 +137,52 @@ def test_path_doors_finds_real_doors_only():
     assert path_doors(along_wall, np.array([10.5, 0.5]), grid, two_sided=True, end_margin=0.7) == []
 
 
+def test_a_door_entered_slantwise_is_found_on_its_jambs():
+    # the warehouse's site office door (1.0 m, in a wall along y = 4.5), entered from the passage north of it: the
+    # path's narrowest point lies 0.1 m inside the office, off the jamb line, where one side finds no jamb
+    grid = OccupancyGrid.from_scene(get_scene("warehouse_aisles"))
+    path = np.array([[22.38, 5.19], [24.31, 5.17], [25.77, 5.15], [26.25, 5.15], [26.45, 4.85], [26.55, 4.4],
+                     [26.65, 3.95], [27.0, 3.85], [29.19, 3.51]])
+    start = np.array([20.93, 5.2])
+    assert path_doors(path, start, grid, two_sided=True, end_margin=0.7) == []
+    doors = path_doors(path, start, grid, two_sided=True, end_margin=0.7, jamb_search=0.3)
+    assert len(doors) == 1
+    c, a, _ = doors[0]
+    assert abs(c[0] - 26.55) < 0.1 and 4.4 < c[1] < 4.6  # moved onto the jamb line
+    assert a[1] < -0.99  # crossed southward, into the office
+    # too short a search still misses it; and it finds no door along a single wall, nor moves a door found before
+    assert path_doors(path, start, grid, two_sided=True, end_margin=0.7, jamb_search=0.05) == []
+    grid = OccupancyGrid.from_scene(get_scene("doorway"))
+    along_wall = np.array([[12.0, 0.5], [15.5, 0.5], [15.5, 7.0]])
+    assert path_doors(along_wall, np.array([10.5, 0.5]), grid, two_sided=True, end_margin=0.7, jamb_search=0.3) == []
+    straight = np.array([[4.0, 4.0], [8.0, 4.0], [12.0, 4.0]])
+    a0 = path_doors(straight, np.array([3.0, 4.0]), grid, two_sided=True, end_margin=0.7)
+    a1 = path_doors(straight, np.array([3.0, 4.0]), grid, two_sided=True, end_margin=0.7, jamb_search=0.3)
+    assert len(a0) == len(a1) == 1 and np.array_equal(a0[0][0], a1[0][0])
+
+
+def test_the_jamb_search_option_reaches_the_door_turns_of_physics_pedestrians(monkeypatch):
+    from navzoo.envs import amp_humans, nav_env
+
+    seen = []
+
+    def spy(*args, **kw):
+        seen.append(kw.get("jamb_search"))
+        return []
+
+    monkeypatch.setattr(nav_env, "path_doors", spy)
+    monkeypatch.setattr(amp_humans, "DOOR_JAMB_SEARCH", 0.3)
+    env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="kinematic", human_door_turns=True)
+    env.reset(seed=0)
+    assert seen and set(seen) == {0.0}  # kinematic crowds: never
+    env.close()
+    seen.clear()
+    env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp")  # door turns on by default
+    env.reset(seed=0)
+    assert seen and set(seen) == {0.3}
+    env.close()
+
+
 def _goals(scene: str, n: int, doors: bool, seconds: float) -> tuple[int, int]:
     env = NavEnv(scene=scene, n_robots=0, n_humans=n, crowd_model="sfm", time_limit=seconds, human_door_turns=doors)
     w = FrozenAgents(env, lambda a: a.startswith("human_"), CrowdPolicy("sfm"))
