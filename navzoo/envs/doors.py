@@ -70,8 +70,8 @@ def path_doors(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, half_wi
     a path that enters a door slantwise has its narrowest point off the door's jamb line (up to 0.2 m into the
     room beyond a 1.0 m door), where one side finds no jamb; such a door is then looked for at points up to this
     far along its axis, and its centre moves to the first one with jambs on both sides (0: the narrowest point
-    only, so such doors are missed; docs/crowd_log.md, "Door turns for the physics bodies": the warehouse's
-    office door).
+    only, so such doors are missed; docs/crowd_log.md, "Doors that paths enter slantwise"). The clearance
+    returned stays the one at the path's narrowest point.
     """
     path = np.asarray(path, dtype=np.float64).reshape(-1, 2)
     line = np.concatenate([np.asarray(start, dtype=np.float64).reshape(1, 2), path])
