@@ -954,12 +954,12 @@ class NavEnv(ParallelEnv):
         if self.door_turns is None or H == 0:
             return np.zeros(H, dtype=bool)
         R = self.n_robots
+        jambs = float(amp_humans.DOOR_JAMB_SEARCH) if self.config.human_model == "amp" else 0.0
         for j in range(H):
             i = R + j
             if self._door_paths[j] is not self.paths[i]:
                 self._door_paths[j] = self.paths[i]
                 rest = self.paths[i][int(self.wp_index[i]):]
-                jambs = float(amp_humans.DOOR_JAMB_SEARCH) if self.config.human_model == "amp" else 0.0
                 self.door_turns.set_route(j, [(c, a) for c, a, _ in path_doors(rest, self.pos[i], self.grid, two_sided=True,
                                                                                     end_margin=0.7, jamb_search=jambs)])
         return self.door_turns.update(t, self.pos[R:], ~self.arrived[R:] & ~self.human_fallen)
