@@ -11,6 +11,10 @@ every scene ran, so that a scene run on more seeds does not weigh more. Paired: 
 successes per scene run, its standard error, and the seeds where B or A is ahead (docs/crowd_log.md, "Sixteen seeds").
 With ``--by-seed``, each seed's scene runs are pooled instead and the settings compared seed by seed. ``--json`` also
 gives each scene's successes seed by seed.
+
+A pair is a fair one only when both runs walked on the same kind of CPU: on another kind the same seed walks other
+trips (docs/pedestrians.md, "Reproducing these figures"). Pairs whose rows record different CPUs are named on
+stderr; ``--same-cpu`` leaves them out (rows that record no CPU are kept).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from __future__ import annotations
 import argparse
 import glob
 import json
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -46,6 +51,30 @@ def load(patterns: Sequence[str], scenes: Sequence[str] | None = None) -> dict[t
         if not rows:
             raise SystemExit(f"no rows of scenes {list(scenes)} in {files}")
     return rows
+
+
+def cpu_mismatches(a: dict, b: dict) -> list[tuple[str, int, str, str]]:
+    """The runs both settings ran whose rows record different CPUs: (scene, seed, A's CPU, B's CPU)."""
+    return [(s, k, a[(s, k)]["cpu"], b[(s, k)]["cpu"]) for s, k in sorted(set(a) & set(b))
+            if a[(s, k)].get("cpu") and b[(s, k)].get("cpu") and a[(s, k)]["cpu"] != b[(s, k)]["cpu"]]
+
+
+def same_cpu(a: dict, b: dict) -> tuple[dict, dict]:
+    """``a`` and ``b`` without the runs of :func:`cpu_mismatches` (in both, so they leave the pairs and the pools)."""
+    drop = {(s, k) for s, k, _, _ in cpu_mismatches(a, b)}
+    return ({key: r for key, r in a.items() if key not in drop}, {key: r for key, r in b.items() if key not in drop})
+
+
+def _warn_cpus(a: dict, b: dict, dropped: bool) -> None:
+    bad = cpu_mismatches(a, b)
+    if not bad:
+        return
+    kinds = sorted({f"A on {ca}, B on {cb}" for _, _, ca, cb in bad})
+    seeds = sorted({k for _, k, _, _ in bad})
+    what = "left out (--same-cpu)" if dropped else "compared anyway; --same-cpu leaves them out"
+    print(f"warning: {len(bad)} of {len(set(a) & set(b))} paired runs ran on different CPUs ({'; '.join(kinds)}; "
+          f"seeds {','.join(map(str, seeds))}): their trips differ by CPU as well as by setting; {what}",
+          file=sys.stderr)
 
 
 def _pooled(rows: Sequence[dict], by_goal: bool) -> dict:
@@ -113,6 +142,8 @@ def main(argv: Sequence[str] | None = None) -> None:
                     help="pool each seed's scene runs instead, and compare the settings seed by seed")
     ap.add_argument("--scenes", default=None, metavar="S,S",
                     help="only these scenes ('protocol' for the 8 of the following protocol, 'heldout' for the 10)")
+    ap.add_argument("--same-cpu", action="store_true",
+                    help="leave out the runs whose rows in A and B record different CPUs")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     only = None
@@ -123,8 +154,12 @@ def main(argv: Sequence[str] | None = None) -> None:
             only = scene_names(args.scenes)
         except ValueError as exc:
             ap.error(str(exc))
+    a, b = load(args.a, only), load(args.b, only)
+    _warn_cpus(a, b, args.same_cpu)
+    if args.same_cpu:
+        a, b = same_cpu(a, b)
     if args.by_seed:
-        res = by_seed(load(args.a, only), load(args.b, only))
+        res = by_seed(a, b)
         if args.json:
             print(json.dumps(res, indent=1))
             return
@@ -135,7 +170,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         print(f"B - A: {res['diff_mean_points']:+.2f} ± {res['diff_se_points']:.2f} points (mean ± s.e. over "
               f"{len(res['seeds'])} seeds); A's seeds spread {res['a_sd_points']:.1f} points (s.d.)")
         return
-    res = compare(load(args.a, only), load(args.b, only), [int(s) for s in args.weight_seeds.split(",")])
+    res = compare(a, b, [int(s) for s in args.weight_seeds.split(",")])
     if args.json:
         print(json.dumps(res, indent=1))
         return

@@ -79,3 +79,22 @@ def test_scenes_keeps_only_the_named_scenes(tmp_path, capsys):
     with pytest.raises(SystemExit):
         sw.main(["--scenes", "atlantis", "--a", fa, "--b", fb])
     assert "atlantis" in capsys.readouterr().err
+
+
+def test_pairs_run_on_different_cpus_are_named_and_left_out_with_same_cpu(tmp_path, capsys):
+    """Another kind of CPU walks other trips: such pairs are named on stderr, and ``--same-cpu`` drops them."""
+    a = [{**_row("x", k, 5, 5), "cpu": "Intel"} for k in range(3)] + [_row("x", 3, 5, 5)]
+    b = [{**_row("x", 0, 9, 1), "cpu": "AMD"}] + [{**_row("x", k, 5, 5), "cpu": "Intel"} for k in (1, 2)]
+    b.append(_row("x", 3, 6, 4))  # no CPU recorded: kept
+    fa, fb = _write(tmp_path / "a.jsonl", a), _write(tmp_path / "b.jsonl", b)
+    ra, rb = sw.load([fa]), sw.load([fb])
+    assert sw.cpu_mismatches(ra, rb) == [("x", 0, "Intel", "AMD")]
+    sw.main(["--by-seed", "--a", fa, "--b", fb])
+    out = capsys.readouterr()
+    assert "1 of 4 paired runs ran on different CPUs (A on Intel, B on AMD; seeds 0)" in out.err
+    assert "B - A: +12.50" in out.out  # seed 0 (+40 points) and seed 3 (+10) in
+    sw.main(["--by-seed", "--same-cpu", "--a", fa, "--b", fb])
+    out = capsys.readouterr()
+    assert "left out (--same-cpu)" in out.err and "B - A: +3.33" in out.out  # seeds 1-3 only
+    sw.main(["--by-seed", "--a", fa, "--b", fa])
+    assert capsys.readouterr().err == ""
