@@ -96,6 +96,52 @@ def test_pushed_pedestrian_falls_and_is_done():
     env.close()
 
 
+def test_fall_log_tells_a_fallen_body_from_a_standing_person():
+    import pybullet as p
+
+    env = _raw(n_robots=0, n_humans=2, max_episode_steps_override=200)
+    env.reset(seed=1, options={"human_starts": [[6.0, 5.0], [3.0, 5.0]], "human_goals": [[6.0, 5.0], [10.0, 5.0]]})
+    log = pedestrians.FallLog(env)
+    env.amp.bodies.push([0], np.array([[800.0, 0.0, 0.0]]), 0.3)
+    zero = np.zeros(ACT_DIM)
+
+    def step():
+        env.step({a: zero for a in env.agents})
+        log.update(env.human_map_contact, env.human_agent_contact, env.human_fallen)
+
+    for _ in range(60):
+        step()
+        if env.human_fallen[0]:
+            break
+    assert env.human_fallen[0] and not env.human_fallen[1]
+    (first,) = log.events
+    # pushed over in the open, 3 m from the other person: nothing touched it
+    assert first["id"] == 0 and first["fallen_m"] is None and first["person_m"] > 2.0
+    assert pedestrians.fall_cause(first) == "none"
+    # the other person is put down on the fallen body: it touches a body that fell, not a standing person
+    root = env.amp.state()["root_pos"][0]
+    body = env.amp.ids[1]
+    pos, orn = p.getBasePositionAndOrientation(body, physicsClientId=env.client)
+    p.resetBasePositionAndOrientation(body, [root[0], root[1], pos[2]], orn, physicsClientId=env.client)
+    for _ in range(60):
+        step()
+        if env.human_fallen[1]:
+            break
+    assert env.human_fallen[1]
+    second = log.events[1]
+    assert second["id"] == 1 and second["since_agent_s"] is None and second["fallen_m"] < 0.3
+    assert pedestrians.fall_cause(second) == "fallen body"
+    env.close()
+
+
+def test_fall_cause_takes_the_last_touch_within_its_window():
+    e = {"since_agent_s": 0.4, "since_map_s": 0.1, "since_fallen_s": None}
+    assert pedestrians.fall_cause(e) == "wall"
+    assert pedestrians.fall_cause({**e, "since_map_s": 3.0}) == "person"
+    assert pedestrians.fall_cause({**e, "since_map_s": 3.0}, within=0.3) == "none"
+    assert pedestrians.fall_cause({"since_agent_s": None, "since_map_s": None, "since_fallen_s": None}) == "none"
+
+
 @pytest.mark.parametrize("obstacles", [True, False])
 def test_others_plan_around_a_fallen_body_when_asked(obstacles):
     from navzoo.envs.fallen import path_passes

@@ -340,12 +340,14 @@ def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str
     walk = [env.pos[h].copy()]  # the walked centres, NaN once a body has fallen
     n_poses = steps = 0
     contact_steps = np.zeros(3, dtype=np.int64)  # person-steps in wall contact, in people contact, standing
+    falls = FallLog(env) if amp else None
     while not env._needs_reset:
         wrapped.step({})
         steps += 1
         live = ~done
         if amp:
             map_now, agent_now, fallen = env.human_map_contact, env.human_agent_contact, env.human_fallen
+            falls.update(map_now, agent_now, fallen)
         else:
             (map_now, agent_now), fallen = kinematic_contacts(env), np.zeros(n, dtype=bool)
         m_flag |= map_now & live
@@ -387,10 +389,87 @@ def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str
         "scene": scene, "pedestrians": n, **ended, "map_trips": map_trips, "agent_trips": agent_trips,
         "err_sum": err_sum, "err_n": err_n, "path_error": has_target, "running": int((~done).sum()),
         "by_goal": by_goal, "walk_collisions": list(walk_hits), "contact_steps": [int(c) for c in contact_steps],
-        "wall_s": round(time.time() - t0, 1),
+        "wall_s": round(time.time() - t0, 1), "fall_events": falls.events if falls is not None else [],
         "poses": np.concatenate(poses) if poses else np.zeros((0, realism.POSE_DIM)),
         "walk_kin": walk_kin,
     }
+
+
+class FallLog:
+    """Each fall of a physics pedestrian in a following run, with what came before it (``fall_events`` of the rows
+    of :func:`follow_scene`): when and where (``t``, ``id``, ``x``, ``y``: the body's planar root when the fall is
+    detected), how long since the body last touched another standing person or a robot (``since_agent_s``), a
+    wall or an obstacle (``since_map_s``) and a body that had fallen before (``since_fallen_s``), and how far its
+    key bodies were from those of an earlier fallen body (``fallen_m``) and its root from the nearest standing
+    person (``person_m``). Times since are ``None`` when it never happened in the run; ``fallen_m`` is ``None``
+    when nobody had fallen. A fall is detected when the body is already down (``AmpBodies.fallen``), about half a
+    second after what tipped it, so a touch ``FALL_CAUSE_S`` before counts (:func:`fall_cause`)."""
+
+    def __init__(self, env) -> None:
+        self.env = env
+        n = env.n_humans
+        self.ids = list(env.amp.ids)
+        self.index = {b: j for j, b in enumerate(self.ids)}
+        self.last_agent = np.full(n, -np.inf)
+        self.last_map = np.full(n, -np.inf)
+        self.last_fallen = np.full(n, -np.inf)
+        self.prev = np.zeros(n, dtype=bool)
+        self.events: list[dict[str, Any]] = []
+
+    def update(self, map_now: np.ndarray, agent_now: np.ndarray, fallen: np.ndarray) -> None:
+        env, t = self.env, float(self.env.sim_time)
+        # contact with a fallen body is contact with "a human" to env.amp.contacts(): tell the two apart here
+        touching_fallen = np.zeros(len(self.ids), dtype=bool)
+        for j in np.flatnonzero(self.prev):
+            for c in p.getContactPoints(bodyA=self.ids[j], physicsClientId=env.client):
+                k = self.index.get(c[2])
+                if k is not None and k != j and not self.prev[k]:
+                    touching_fallen[k] = True
+        self.last_fallen[touching_fallen] = t
+        agent = agent_now & ~touching_fallen
+        for k in np.flatnonzero(agent_now & touching_fallen):  # also touching someone standing, or a robot?
+            agent[k] = any(self._upright_other(k, c[2])
+                           for c in p.getContactPoints(bodyA=self.ids[k], physicsClientId=env.client))
+        self.last_agent[agent] = t
+        self.last_map[map_now] = t
+        new = np.flatnonzero(fallen & ~self.prev)
+        if new.size:
+            s = env.amp.state()
+            root, key = s["root_pos"][:, :2], s["key_pos"][:, :, :2]
+            standing = np.flatnonzero(~fallen)
+            for j in new:
+                before = np.flatnonzero(self.prev)
+                fallen_m = (float(np.linalg.norm(key[j][:, None] - key[before].reshape(-1, 2)[None], axis=2).min())
+                            if before.size else None)
+                others = standing[standing != j]
+                person_m = float(np.linalg.norm(root[others] - root[j], axis=1).min()) if others.size else None
+                self.events.append({
+                    "t": round(t, 2), "id": int(j), "x": round(float(root[j, 0]), 2), "y": round(float(root[j, 1]), 2),
+                    **{f"since_{k}_s": (round(t - float(v[j]), 2) if np.isfinite(v[j]) else None)
+                       for k, v in (("agent", self.last_agent), ("map", self.last_map), ("fallen", self.last_fallen))},
+                    "fallen_m": None if fallen_m is None else round(fallen_m, 3),
+                    "person_m": None if person_m is None else round(person_m, 3),
+                })
+        self.prev = fallen.copy()
+
+    def _upright_other(self, j: int, body: int) -> bool:
+        """Whether PyBullet body ``body``, touched by pedestrian ``j``, is a robot or another pedestrian still up."""
+        if body in self.index:
+            return self.index[body] != j and not self.prev[self.index[body]]
+        return self.env._body_kind.get(body) == "robot"
+
+
+FALL_CAUSE_S = 1.5
+
+
+def fall_cause(event: dict[str, Any], within: float = FALL_CAUSE_S) -> str:
+    """What most likely tipped a fall of :class:`FallLog`: the most recent touch within ``within`` s before
+    the fall was detected, ``"fallen body"``, ``"person"`` (a standing person or a robot) or ``"wall"``; else
+    ``"none"`` (the body fell on its own: a stumble, a sharp turn)."""
+    recent = {name: event[key] for name, key in (("fallen body", "since_fallen_s"), ("person", "since_agent_s"),
+                                                   ("wall", "since_map_s"))
+              if event.get(key) is not None and event[key] <= within}
+    return min(recent, key=recent.get) if recent else "none"
 
 
 def _count_goal_trip(counts: dict[str, int], outcome: str, m_goal: np.ndarray, a_goal: np.ndarray, j: int) -> None:

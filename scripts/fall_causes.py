@@ -1,0 +1,122 @@
+"""What tips the physics pedestrians over in the following runs, and do falls come in cascades?
+
+    python scripts/fall_causes.py RUNS.jsonl [RUNS.jsonl ...] [--by-scene] [--within S] [--near M] [--json]
+
+Reads the rows of ``scripts/amp_target_ablation.py`` (or any rows of ``navzoo.benchmark.pedestrians.follow_scene``)
+that carry ``fall_events`` (:class:`navzoo.benchmark.pedestrians.FallLog`, since 2026-12-06; older rows are
+skipped and counted). Per configuration (and scene with ``--by-scene``) it prints:
+
+- ``runs``, ``falls`` and the share of the falls that happen in runs with at least ``CASCADE_RUN`` falls
+  (``in_runs_with_3plus``): a few runs holding most falls means falls come in cascades;
+- the falls by cause (:func:`navzoo.benchmark.pedestrians.fall_cause`: the last touch within ``--within`` s
+  before the fall was detected: a body that had fallen, a standing person or a robot, a wall; or none);
+- ``near_fallen``: falls whose key bodies came within ``--near`` m of a body that had fallen before;
+- successes per run in runs without falls and in runs with ``CASCADE_RUN`` falls or more: a fallen person makes no
+  more trips, so a cascade costs a run much of its successes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+CASCADE_RUN = 3
+CAUSES = ("fallen body", "person", "wall", "none")
+
+
+def read(paths: list[str]) -> tuple[list[dict], int]:
+    """Rows with fall events (a run that appears in several files is counted once) and the number skipped."""
+    rows, seen, skipped = [], set(), 0
+    for path in paths:
+        for n, line in enumerate(Path(path).read_text().splitlines(), 1):
+            if not line.strip():
+                continue
+            try:
+                r = json.loads(line)
+            except json.JSONDecodeError as e:
+                raise ValueError(f"{path}:{n}: not a JSON line ({e})") from None
+            if "scene" not in r or "fall" not in r:
+                continue  # a settings line
+            if "fall_events" not in r:
+                skipped += 1
+                continue
+            key = (r.get("config"), r.get("crowd"), r["scene"], r.get("pedestrians"), r.get("seed"))
+            if key in seen:
+                continue
+            seen.add(key)
+            rows.append(r)
+    return rows, skipped
+
+
+def summarize(rows: list[dict], within: float, near: float) -> dict:
+    from navzoo.benchmark.pedestrians import fall_cause
+
+    falls = [len(r["fall_events"]) for r in rows]
+    events = [e for r in rows for e in r["fall_events"]]
+    causes = dict.fromkeys(CAUSES, 0)
+    for e in events:
+        causes[fall_cause(e, within)] += 1
+    cascade = [r for r, f in zip(rows, falls, strict=True) if f >= CASCADE_RUN]
+    calm = [r for r, f in zip(rows, falls, strict=True) if f == 0]
+    total = sum(falls)
+    return {
+        "runs": len(rows), "falls": total,
+        "falls_per_run": sorted(falls, reverse=True),
+        f"in_runs_with_{CASCADE_RUN}plus": round(sum(len(r["fall_events"]) for r in cascade) / total, 3) if total else None,
+        "causes": causes,
+        "near_fallen": sum(1 for e in events if e["fallen_m"] is not None and e["fallen_m"] <= near),
+        "success_per_run_no_falls": round(sum(r["success"] for r in calm) / len(calm), 1) if calm else None,
+        f"success_per_run_{CASCADE_RUN}plus_falls": (round(sum(r["success"] for r in cascade) / len(cascade), 1)
+                                                    if cascade else None),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("files", nargs="+", help="JSON lines of scripts/amp_target_ablation.py")
+    ap.add_argument("--by-scene", action="store_true", help="one line per configuration and scene")
+    ap.add_argument("--within", type=float, default=None,
+                    help="a touch this long (s) before the fall counts as its cause (default FALL_CAUSE_S, 1.5)")
+    ap.add_argument("--near", type=float, default=0.5, help="m: a fall this close to a fallen body is 'near_fallen'")
+    ap.add_argument("--json", action="store_true", help="one JSON line per group instead of the table")
+    a = ap.parse_args(argv)
+    from navzoo.benchmark.pedestrians import FALL_CAUSE_S
+
+    within = FALL_CAUSE_S if a.within is None else a.within
+    if within <= 0 or a.near <= 0:
+        ap.error("--within and --near must be positive")
+    try:
+        rows, skipped = read(a.files)
+    except (OSError, ValueError) as e:
+        ap.error(str(e))
+    if skipped:
+        print(f"fall_causes: {skipped} rows without fall_events (runs before 2026-12-06) left out", file=sys.stderr)
+    if not rows:
+        ap.error("no rows with fall_events in these files")
+    groups: dict[tuple, list[dict]] = defaultdict(list)
+    for r in rows:
+        groups[(r.get("config", "?"), r.get("crowd", "sfm"), r["scene"] if a.by_scene else "all")].append(r)
+    if not a.json:
+        print(f"| configuration | scene | runs | falls | in runs with {CASCADE_RUN}+ falls | "
+              + " | ".join(f"cause: {c}" for c in CAUSES)
+              + f" | within {a.near} m of a fallen body | successes per run, no falls / {CASCADE_RUN}+ falls |")
+        print("|" + "---|" * (9 + len(CAUSES) - 1))
+    for (config, crowd, scene), rs in sorted(groups.items()):
+        s = summarize(rs, within, a.near)
+        if a.json:
+            print(json.dumps({"config": config, "crowd": crowd, "scene": scene, **s}))
+            continue
+        share = s[f"in_runs_with_{CASCADE_RUN}plus"]
+        print(f"| {config} ({crowd}) | {scene} | {s['runs']} | {s['falls']} | "
+              f"{'-' if share is None else f'{100 * share:.0f} %'} | "
+              + " | ".join(str(s["causes"][c]) for c in CAUSES)
+              + f" | {s['near_fallen']} | {s['success_per_run_no_falls']} / "
+              f"{s[f'success_per_run_{CASCADE_RUN}plus_falls']} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,57 @@
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from tests.script_modules import load_script
+
+fc = load_script("fall_causes")
+
+
+def _event(t, agent=None, wall=None, fallen=None, fallen_m=None):
+    return {"t": t, "id": 0, "x": 0.0, "y": 0.0, "since_agent_s": agent, "since_map_s": wall, "since_fallen_s": fallen,
+            "fallen_m": fallen_m, "person_m": 1.0}
+
+
+def _row(seed, scene, success, events, config="kdt"):
+    return {"config": config, "crowd": "diffusion", "scene": scene, "pedestrians": 8, "seed": seed,
+            "success": success, "fall": len(events), "fall_events": events}
+
+
+def test_cascades_and_causes(tmp_path, capsys):
+    rows = [
+        _row(0, "lobby", 100, []),
+        _row(1, "lobby", 90, []),
+        _row(2, "lobby", 20, [_event(5, agent=0.2), _event(9, fallen=0.1, fallen_m=0.05, agent=0.9),
+                              _event(12, fallen=0.3, fallen_m=0.2), _event(30, wall=0.5, fallen_m=4.0)]),
+        _row(3, "corridor", 60, [_event(40)]),
+    ]
+    f = tmp_path / "runs.jsonl"
+    # a settings line, a row from before fall events were logged, and the same run twice: read once each
+    old = {k: v for k, v in rows[0].items() if k != "fall_events"} | {"seed": 9}
+    f.write_text("\n".join(json.dumps(r) for r in [{"settings": {}}, old, *rows, rows[2]]) + "\n")
+    read, skipped = fc.read([str(f)])
+    assert len(read) == 4 and skipped == 1
+    s = fc.summarize(read, within=1.5, near=0.5)
+    assert s["falls"] == 5 and s["falls_per_run"] == [4, 1, 0, 0]
+    assert s["in_runs_with_3plus"] == pytest.approx(0.8)
+    assert s["causes"] == {"fallen body": 2, "person": 1, "wall": 1, "none": 1}
+    assert s["near_fallen"] == 2
+    assert s["success_per_run_no_falls"] == 95.0 and s["success_per_run_3plus_falls"] == 20.0
+    assert fc.main([str(f), "--by-scene", "--json"]) == 0
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert [(x["scene"], x["falls"]) for x in lines] == [("corridor", 1), ("lobby", 4)]
+
+
+def test_bad_input_is_named(tmp_path, capsys):
+    f = tmp_path / "bad.jsonl"
+    f.write_text("{not json\n")
+    with pytest.raises(SystemExit):
+        fc.main([str(f)])
+    assert "bad.jsonl:1" in capsys.readouterr().err
+    g = tmp_path / "old.jsonl"
+    g.write_text(json.dumps({"scene": "lobby", "fall": 0, "success": 3}) + "\n")
+    with pytest.raises(SystemExit):
+        fc.main([str(g)])
+    assert "no rows with fall_events" in capsys.readouterr().err
