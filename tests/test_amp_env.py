@@ -96,6 +96,28 @@ def test_pushed_pedestrian_falls_and_is_done():
     env.close()
 
 
+def test_fallen_body_is_stamped_where_it_comes_to_rest():
+    from navzoo.envs.fallen import FALLEN_RESTAMP_M
+
+    env = _raw(n_robots=0, n_humans=2, max_episode_steps_override=200, human_fallen_obstacles=True)
+    env.reset(seed=1, options={"human_starts": [[6.0, 5.0], [3.0, 5.0]], "human_goals": [[6.0, 5.0], [10.0, 5.0]]})
+    env.amp.bodies.push([0], np.array([[800.0, 0.0, 0.0]]), 0.3)
+    zero = np.zeros(ACT_DIM)
+    for _ in range(60):
+        env.step({a: zero for a in env.agents})
+        if env.human_fallen[0]:
+            break
+    first = env._fallen_stamped[0].copy()
+    for _ in range(60):  # 2 s: the body slides on and comes to rest
+        env.step({a: zero for a in env.agents})
+    now = env._fallen_lying()[0]
+    assert np.linalg.norm(now[0] - first[0]) > 2 * FALLEN_RESTAMP_M  # it moved on after it was found fallen...
+    assert np.max(np.linalg.norm(now - env._fallen_stamped[0], axis=1)) <= FALLEN_RESTAMP_M  # ...and was stamped again
+    assert not env._fallen_grid.is_free(now[:1])[0]
+    assert env._fallen_grid.is_free(first[:1])[0] or np.linalg.norm(now - first[0], axis=1).min() < 0.3
+    env.close()
+
+
 def test_fall_log_tells_a_fallen_body_from_a_standing_person():
     import pybullet as p
 
@@ -131,6 +153,8 @@ def test_fall_log_tells_a_fallen_body_from_a_standing_person():
     second = log.events[1]
     assert second["id"] == 1 and second["since_agent_s"] is None and second["fallen_m"] < 0.3
     assert pedestrians.fall_cause(second) == "fallen body"
+    log.finish()
+    assert first["slid_m"] > 0.4  # pushed hard: found fallen while it still slid on
     env.close()
 
 

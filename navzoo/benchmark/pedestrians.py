@@ -376,6 +376,8 @@ def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str
             _count_goal_trip(by_goal, outcome, m_goal, a_goal, j)
     for j in trips.finish():
         _count_goal_trip(by_goal, "timeout", m_goal, a_goal, j)
+    if falls is not None:
+        falls.finish()
     from navzoo.benchmark.crowd_eval import walked_collisions, walked_kinematics
 
     walked = np.asarray(walk)
@@ -402,7 +404,8 @@ class FallLog:
     wall or an obstacle (``since_map_s``) and a body that had fallen before (``since_fallen_s``), and how far its
     key bodies were from those of an earlier fallen body (``fallen_m``) and its root from the nearest standing
     person (``person_m``). Times since are ``None`` when it never happened in the run; ``fallen_m`` is ``None``
-    when nobody had fallen. A fall is detected when the body is already down (``AmpBodies.fallen``), about half a
+    when nobody had fallen. :meth:`finish` adds ``slid_m``, how far the root lies at the end of the run from where
+    the fall was detected. A fall is detected when the body is already down (``AmpBodies.fallen``), about half a
     second after what tipped it, so a touch ``FALL_CAUSE_S`` before counts (:func:`fall_cause`)."""
 
     def __init__(self, env) -> None:
@@ -451,6 +454,15 @@ class FallLog:
                     "person_m": None if person_m is None else round(person_m, 3),
                 })
         self.prev = fallen.copy()
+
+    def finish(self) -> None:
+        """At the end of the run: how far each fallen body's root lies from where its fall was detected
+        (``slid_m``: it slides and rolls on after it is found fallen)."""
+        if not self.events:
+            return
+        root = self.env.amp.state()["root_pos"][:, :2]
+        for e in self.events:
+            e["slid_m"] = round(float(np.hypot(root[e["id"], 0] - e["x"], root[e["id"], 1] - e["y"])), 2)
 
     def _upright_other(self, j: int, body: int) -> bool:
         """Whether PyBullet body ``body``, touched by pedestrian ``j``, is a robot or another pedestrian still up."""

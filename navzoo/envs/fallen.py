@@ -5,8 +5,11 @@ crowd model is where its root is, but the body lies up to a body length around i
 it blocks the way. With ``NavConfig(human_fallen_obstacles=True)`` the env stamps every fallen body's
 footprint (its root and key bodies: head, hands, feet, and the lines from the root to them) into a
 copy of the occupancy grid, plans the pedestrians' paths on that grid from then on, and plans again
-right away for everyone whose remaining path passes the body. Where no path avoids the body (a
-single door it lies in), a person keeps its old path and waits, as before.
+right away for everyone whose remaining path passes the body. A body is found fallen while it still
+slides and rolls, and comes to rest up to a metre further on, so the env stamps the fallen bodies
+again (on a fresh copy of the bare grid) whenever one has moved more than ``FALLEN_RESTAMP_M`` from
+where it was stamped. Where no path avoids the body (a single door it lies in), a person keeps its
+old path and waits, as before.
 """
 
 from __future__ import annotations
@@ -17,6 +20,9 @@ from navzoo.world.occupancy import OccupancyGrid
 from navzoo.world.planner import resample_polyline
 
 FALLEN_BODY_RADIUS = 0.15  # m: half the thickness of a lying body, around its root-to-limb lines
+# m: a lying body whose root or a key body has moved this far from where it was stamped is stamped again (a body is
+# found fallen while it still slides and rolls)
+FALLEN_RESTAMP_M = 0.2
 _SAMPLE_M = 0.05
 
 

@@ -26,7 +26,7 @@ from navzoo.envs.amp_humans import WAYPOINT_LOOKAHEAD, AmpHumans, advance_waypoi
 from navzoo.envs.amp_humans import YIELD_HOLD_S as AMP_YIELD_HOLD_S
 from navzoo.envs.config import NavConfig
 from navzoo.envs.doors import door_entries, path_doors
-from navzoo.envs.fallen import FALLEN_BODY_RADIUS, path_passes
+from navzoo.envs.fallen import FALLEN_BODY_RADIUS, FALLEN_RESTAMP_M, path_passes
 from navzoo.envs.fallen import footprint_points as fallen_footprint_points
 from navzoo.envs.fallen import stamp as stamp_fallen
 from navzoo.envs.rewards import TERMS, RewardParams, navigation_reward
@@ -355,6 +355,7 @@ class NavEnv(ParallelEnv):
         self._fallen_grid: OccupancyGrid | None = None  # the grid with fallen bodies (human_fallen_obstacles)
         self._fallen_planners: dict[float, AStarPlanner] = {}
         self._fallen_points = np.zeros((0, 2))
+        self._fallen_stamped: dict[int, np.ndarray] = {}  # pedestrian -> its root and key bodies (K+1, 2) when stamped
         self._fallen_replanned = False
         self._wp_hidden = np.zeros(N)  # seconds each agent's current waypoint has been out of its sight
         self._last_replan = np.full(N, -np.inf)  # sim time of each pedestrian's last blocked-path replan
@@ -581,8 +582,8 @@ class NavEnv(ParallelEnv):
             self.human_map_contact, self.human_agent_contact, self.human_robot_contact = self.amp.contacts()
             new_falls = np.flatnonzero(self.amp.fallen & ~self.human_fallen)
             self.human_fallen = self.amp.fallen.copy()
-            if cfg.human_fallen_obstacles and new_falls.size:
-                self._fallen_replanned = self._avoid_fallen(new_falls)
+            if cfg.human_fallen_obstacles and (new_falls.size or self._fallen_moved()):
+                self._fallen_replanned = self._avoid_fallen() or self._fallen_replanned
         r_pos, r_yaw, tilt = self.robots.read_state()
         nan_state = bool(~np.isfinite(r_pos[robot_alive]).all() or ~np.isfinite(r_yaw[robot_alive]).all())
         if not nan_state:
@@ -964,15 +965,32 @@ class NavEnv(ParallelEnv):
                                                                                     end_margin=0.7, jamb_search=jambs)])
         return self.door_turns.update(t, self.pos[R:], ~self.arrived[R:] & ~self.human_fallen)
 
-    def _avoid_fallen(self, fallen: np.ndarray) -> bool:
-        """Stamp the bodies of the pedestrians ``fallen`` (indices among the pedestrians) into the
-        pedestrians' planning grid and plan again for the standing ones whose path passes them;
-        returns whether any path changed (:mod:`navzoo.envs.fallen`)."""
-        R = self.n_robots
+    def _fallen_lying(self) -> dict[int, np.ndarray]:
+        """Each fallen pedestrian's root and key bodies where they lie now: index -> (K+1, 2)."""
         s = self.amp.state()
-        pts = np.concatenate([fallen_footprint_points(s["root_pos"][j, :2], s["key_pos"][j, :, :2]) for j in fallen])
-        self._fallen_points = np.concatenate([self._fallen_points, pts])
-        self._fallen_grid = stamp_fallen(self._fallen_grid if self._fallen_grid is not None else self.grid, pts)
+        return {int(j): np.concatenate([s["root_pos"][j, None, :2], s["key_pos"][j, :, :2]])
+                for j in np.flatnonzero(self.human_fallen)}
+
+    def _fallen_moved(self) -> bool:
+        """Whether a fallen body has moved more than ``FALLEN_RESTAMP_M`` since it was stamped: a body is found
+        fallen while it still slides and rolls, and comes to rest up to a metre further on."""
+        if not self._fallen_stamped:
+            return False
+        now = self._fallen_lying()
+        return any(float(np.max(np.linalg.norm(now[j] - was, axis=1))) > FALLEN_RESTAMP_M
+                   for j, was in self._fallen_stamped.items())
+
+    def _avoid_fallen(self) -> bool:
+        """Stamp the bodies of the fallen pedestrians, where they lie now, into the pedestrians' planning grid
+        (a fresh copy of the bare grid) and plan again for the standing ones whose path passes them; returns
+        whether any path changed (:mod:`navzoo.envs.fallen`). Called on each new fall and whenever a fallen
+        body has moved on from where it was stamped (:meth:`_fallen_moved`)."""
+        R = self.n_robots
+        lying = self._fallen_lying()
+        pts = np.concatenate([fallen_footprint_points(xy[0], xy[1:]) for xy in lying.values()])
+        self._fallen_points = pts
+        self._fallen_stamped = lying
+        self._fallen_grid = stamp_fallen(self.grid, pts)
         self._fallen_planners = {}
         changed = False
         for j in np.flatnonzero(~self.human_fallen & ~self.arrived[R:]):

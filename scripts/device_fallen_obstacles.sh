@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Single following runs (scripts/amp_target_ablation.py) from a list, P at a time: the runs of the fallen-obstacles
+# comparison (docs/crowd_log.md, "Falls come in cascades").
+#
+#   device run, carry [".whl"]:   bash scripts/device_fallen_obstacles.sh
+#   a machine with navzoo:        PYTHON=.venv/bin/python P=2 OUT=out JOBS=docs/results/fallen_obstacles/jobs_heldout_amd.txt \
+#                                     bash scripts/device_fallen_obstacles.sh
+#
+# JOBS (default docs/results/fallen_obstacles/jobs_protocol.txt) has one run per line: CONFIG SCENE[:PEOPLE] SEED, where
+# CONFIG is kdtf... (diffusion targets) or skdtf... (social-force targets; e.g. skdtfr), today's defaults with
+# human_fallen_obstacles on, under that name.
+# Each run writes $OUT/parts/CONFIG_SCENE_SEED.jsonl (a call cut short keeps the runs it finished); at the end the
+# parts are joined into $OUT/CONFIG_fallen.jsonl. SECS (default 200) sets the run length.
+set -u
+if [ -d .whl ] && [ -z "${PYTHON:-}" ]; then  # the device machine: bring the wheels
+  python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/*.whl 2>&1 | tail -1
+  export PYTHONPATH=/tmp/site:$PWD
+fi
+export OMP_NUM_THREADS=1 PYTHON=${PYTHON:-python3} SECS=${SECS:-200}
+lscpu | grep "Model name"
+export S="SFM_SIDE_BIAS=0.4+SFM_SIDE_NARROW_REACH=1.5"
+one() {
+  case $1 in
+    kdtf*) cfg="$1:0.1:0.1:4:2.0:human_door_turns+human_fallen_obstacles::::::::::$S"; crowd=diffusion ;;
+    skdtf*) cfg="$1:0.1:0.1:4:2.0:human_door_turns+human_fallen_obstacles::::1:::::1:$S"; crowd=sfm ;;
+    *) echo "unknown configuration $1 (kdtf... or skdtf...)" >&2; return 1 ;;
+  esac
+  timeout 1500 "$PYTHON" scripts/amp_target_ablation.py --crowd $crowd --scenes "$2" --configs "$cfg" --seeds "$3" \
+    --seconds "$SECS" --workers 1 --out "$OUT/parts/$1_$2_$3.jsonl" > "$OUT/parts/$1_$2_$3.log" 2>&1
+}
+export -f one
+mkdir -p "$OUT/parts"
+xargs -P "${P:-16}" -L 1 bash -c 'one "$@"' _ < "${JOBS:-docs/results/fallen_obstacles/jobs_protocol.txt}"
+for c in $(cut -d" " -f1 "${JOBS:-docs/results/fallen_obstacles/jobs_protocol.txt}" | sort -u); do
+  cat "$OUT"/parts/${c}_*.jsonl > "$OUT/${c}_fallen.jsonl"
+done
+wc -l "$OUT"/*_fallen.jsonl
