@@ -8,7 +8,8 @@ interrupted run resumes; a name already there with other parameters is refused).
 ``navzoo.envs.amp_humans.PLAN_MARGIN`` (people and A* inflation), ``WALL_PLAN_MARGIN`` (walls in the
 social-force rollouts), ``WAYPOINT_LOOKAHEAD`` (0 = waypoints in strict order) and
 ``TARGET_TURN_RATE`` (rad/s, the rollouts' heading-rate limit; 0 or left out = off) and, with
-FALLEN = 1, ``NavConfig.human_fallen_obstacles`` (people plan around fallen bodies; 0 or left out = off);
+FALLEN = 1, ``NavConfig.human_fallen_obstacles`` (people plan around fallen bodies; 0 or left out = NavConfig's
+default, which is on since 2026-12-06: ``human_fallen_obstacles=false`` turns it off; rows record the value used);
 FALLEN may instead name boolean NavConfig flags to turn on, joined by ``+`` (e.g.
 ``human_door_entries+human_fallen_obstacles``), or set word-valued ones as ``name=value`` (e.g.
 ``human_replan_blocked=off``) and numeric ones the same way (e.g. ``amp_wall_strength=0.3``; values are read as
@@ -92,7 +93,8 @@ def parse_config(text: str) -> dict:
         check_env_overrides(env_overrides(cfg["env_flags"]))
     except ValueError as e:
         raise ValueError(f"{e}, in {text!r}") from None
-    cfg["fallen_obstacles"] = "human_fallen_obstacles" in cfg["env_flags"]
+    cfg["fallen_obstacles"] = bool(env_overrides(cfg["env_flags"]).get(
+        "human_fallen_obstacles", NavConfig.__dataclass_fields__["human_fallen_obstacles"].default))
     if min(cfg["plan_margin"], cfg["wall_margin"], cfg["lookahead"], cfg["turn_rate"], cfg["accel"] or 0.0) < 0:
         raise ValueError(f"margins, lookahead, turn rate and acceleration must be >= 0, got {text!r}")
     if cfg["dcap"] is not None and not cfg["dcap"] > 0:

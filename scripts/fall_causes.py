@@ -1,16 +1,20 @@
 """What tips the physics pedestrians over in the following runs, and do falls come in cascades?
 
-    python scripts/fall_causes.py RUNS.jsonl [RUNS.jsonl ...] [--by-scene] [--within S] [--near M] [--json]
+    python scripts/fall_causes.py RUNS.jsonl [RUNS.jsonl ...] [--by-scene] [--scenes protocol|heldout|S,S] [--counts]
+        [--within S] [--near M] [--json]
 
 Reads the rows of ``scripts/amp_target_ablation.py`` (or any rows of ``navzoo.benchmark.pedestrians.follow_scene``)
 that carry ``fall_events`` (:class:`navzoo.benchmark.pedestrians.FallLog`, since 2026-12-06; older rows are
-skipped and counted). Per configuration (and scene with ``--by-scene``) it prints:
+skipped and counted, or with ``--counts`` taken for their fall counts alone). Per configuration and kind of CPU (and scene with ``--by-scene``) it prints:
 
 - ``runs``, ``falls`` and the share of the falls that happen in runs with at least ``CASCADE_RUN`` falls
   (``in_runs_with_3plus``): a few runs holding most falls means falls come in cascades;
 - the falls by cause (:func:`navzoo.benchmark.pedestrians.fall_cause`: the last touch within ``--within`` s
   before the fall was detected: a body that had fallen, a standing person or a robot, a wall; or none);
 - ``near_fallen``: falls whose key bodies came within ``--near`` m of a body that had fallen before;
+- for the falls tipped by a lying body, the median time since the fall before them in the run
+  (``fallen_body_after_s``) and how many came within ``KNOCKED_S`` of it (knocked over by a falling body rather
+  than walking into a lying one);
 - successes per run in runs without falls and in runs with ``CASCADE_RUN`` falls or more: a fallen person makes no
   more trips, so a cascade costs a run much of its successes.
 """
@@ -23,12 +27,16 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
+import numpy as np
+
 CASCADE_RUN = 3
+KNOCKED_S = 3.0  # a fall this soon after the one before, tipped by that body: knocked over as it fell
 CAUSES = ("fallen body", "person", "wall", "none")
 
 
-def read(paths: list[str]) -> tuple[list[dict], int]:
-    """Rows with fall events (a run that appears in several files is counted once) and the number skipped."""
+def read(paths: list[str], counts: bool = False) -> tuple[list[dict], int]:
+    """Rows with fall events (a run that appears in several files is counted once) and the number skipped; with
+    ``counts``, rows without fall events too (their falls are their ``fall`` count; they have no causes)."""
     rows, seen, skipped = [], set(), 0
     for path in paths:
         for n, line in enumerate(Path(path).read_text().splitlines(), 1):
@@ -40,7 +48,7 @@ def read(paths: list[str]) -> tuple[list[dict], int]:
                 raise ValueError(f"{path}:{n}: not a JSON line ({e})") from None
             if "scene" not in r or "fall" not in r:
                 continue  # a settings line
-            if "fall_events" not in r:
+            if "fall_events" not in r and not counts:
                 skipped += 1
                 continue
             key = (r.get("config"), r.get("crowd"), r["scene"], r.get("pedestrians"), r.get("seed"))
@@ -54,20 +62,28 @@ def read(paths: list[str]) -> tuple[list[dict], int]:
 def summarize(rows: list[dict], within: float, near: float) -> dict:
     from navzoo.benchmark.pedestrians import fall_cause
 
-    falls = [len(r["fall_events"]) for r in rows]
-    events = [e for r in rows for e in r["fall_events"]]
+    falls = [len(r["fall_events"]) if "fall_events" in r else int(r["fall"]) for r in rows]
+    events = [e for r in rows for e in r.get("fall_events", [])]
     causes = dict.fromkeys(CAUSES, 0)
     for e in events:
         causes[fall_cause(e, within)] += 1
+    gaps = []  # falls tipped by a lying body: seconds since the fall before them in the run
+    for r in rows:
+        ev = r.get("fall_events", [])
+        gaps += [e["t"] - max(x["t"] for x in ev[:k]) for k, e in enumerate(ev)
+                 if k and fall_cause(e, within) == "fallen body"]
     cascade = [r for r, f in zip(rows, falls, strict=True) if f >= CASCADE_RUN]
     calm = [r for r, f in zip(rows, falls, strict=True) if f == 0]
     total = sum(falls)
     return {
         "runs": len(rows), "falls": total,
         "falls_per_run": sorted(falls, reverse=True),
-        f"in_runs_with_{CASCADE_RUN}plus": round(sum(len(r["fall_events"]) for r in cascade) / total, 3) if total else None,
+        f"in_runs_with_{CASCADE_RUN}plus": round(sum(f for f in falls if f >= CASCADE_RUN) / total, 3) if total else None,
+        f"runs_with_{CASCADE_RUN}plus": len(cascade),
         "causes": causes,
         "near_fallen": sum(1 for e in events if e["fallen_m"] is not None and e["fallen_m"] <= near),
+        "fallen_body_after_s": round(float(np.median(gaps)), 1) if gaps else None,
+        f"fallen_body_within_{KNOCKED_S:g}s": sum(1 for g in gaps if g <= KNOCKED_S),
         "success_per_run_no_falls": round(sum(r["success"] for r in calm) / len(calm), 1) if calm else None,
         f"success_per_run_{CASCADE_RUN}plus_falls": (round(sum(r["success"] for r in cascade) / len(cascade), 1)
                                                     if cascade else None),
@@ -82,6 +98,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="a touch this long (s) before the fall counts as its cause (default FALL_CAUSE_S, 1.5)")
     ap.add_argument("--near", type=float, default=0.5, help="m: a fall this close to a fallen body is 'near_fallen'")
     ap.add_argument("--json", action="store_true", help="one JSON line per group instead of the table")
+    ap.add_argument("--scenes", default=None, metavar="S,S",
+                    help="only these scenes ('protocol' for the 8 of the following protocol, 'heldout' for the 10)")
+    ap.add_argument("--counts", action="store_true",
+                    help="also rows without fall events (older runs): their fall counts, no causes")
     a = ap.parse_args(argv)
     from navzoo.benchmark.pedestrians import FALL_CAUSE_S
 
@@ -89,31 +109,42 @@ def main(argv: list[str] | None = None) -> int:
     if within <= 0 or a.near <= 0:
         ap.error("--within and --near must be positive")
     try:
-        rows, skipped = read(a.files)
+        rows, skipped = read(a.files, a.counts)
     except (OSError, ValueError) as e:
         ap.error(str(e))
+    if a.scenes is not None:
+        from navzoo.benchmark.pedestrians import scene_names
+
+        try:
+            only = set(scene_names(a.scenes))
+        except ValueError as e:
+            ap.error(str(e))
+        rows = [r for r in rows if r["scene"] in only]
     if skipped:
         print(f"fall_causes: {skipped} rows without fall_events (runs before 2026-12-06) left out", file=sys.stderr)
     if not rows:
-        ap.error("no rows with fall_events in these files")
+        ap.error("no rows with fall_events in these files (--counts takes the fall counts of older rows)")
     groups: dict[tuple, list[dict]] = defaultdict(list)
     for r in rows:
-        groups[(r.get("config", "?"), r.get("crowd", "sfm"), r["scene"] if a.by_scene else "all")].append(r)
+        cpu = str(r.get("cpu", "?")).split("(")[0].split()[0]  # rows of another kind of CPU are other runs: kept apart
+        groups[(r.get("config", "?"), r.get("crowd", "sfm"), cpu, r["scene"] if a.by_scene else "all")].append(r)
     if not a.json:
         print(f"| configuration | scene | runs | falls | in runs with {CASCADE_RUN}+ falls | "
               + " | ".join(f"cause: {c}" for c in CAUSES)
-              + f" | within {a.near} m of a fallen body | successes per run, no falls / {CASCADE_RUN}+ falls |")
-        print("|" + "---|" * (9 + len(CAUSES) - 1))
-    for (config, crowd, scene), rs in sorted(groups.items()):
+              + f" | within {a.near} m of a fallen body | tipped by a lying body: median time after the fall before "
+              f"(within {KNOCKED_S:g} s) | successes per run, no falls / {CASCADE_RUN}+ falls |")
+        print("|" + "---|" * (10 + len(CAUSES) - 1))
+    for (config, crowd, cpu, scene), rs in sorted(groups.items()):
         s = summarize(rs, within, a.near)
         if a.json:
-            print(json.dumps({"config": config, "crowd": crowd, "scene": scene, **s}))
+            print(json.dumps({"config": config, "crowd": crowd, "cpu": cpu, "scene": scene, **s}))
             continue
         share = s[f"in_runs_with_{CASCADE_RUN}plus"]
-        print(f"| {config} ({crowd}) | {scene} | {s['runs']} | {s['falls']} | "
-              f"{'-' if share is None else f'{100 * share:.0f} %'} | "
+        print(f"| {config} ({crowd}, {cpu}) | {scene} | {s['runs']} | {s['falls']} | "
+              f"{'-' if share is None else f'{100 * share:.0f} %'} ({s[f'runs_with_{CASCADE_RUN}plus']} runs) | "
               + " | ".join(str(s["causes"][c]) for c in CAUSES)
-              + f" | {s['near_fallen']} | {s['success_per_run_no_falls']} / "
+              + f" | {s['near_fallen']} | {s['fallen_body_after_s']} s ({s[f'fallen_body_within_{KNOCKED_S:g}s']}) "
+              f"| {s['success_per_run_no_falls']} / "
               f"{s[f'success_per_run_{CASCADE_RUN}plus_falls']} |")
     return 0
 

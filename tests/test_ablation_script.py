@@ -314,3 +314,14 @@ def test_a_scene_rerun_with_another_people_count_is_refused(tmp_path):
     ablation.check_people([_row(cfg, "bottleneck", 0, pedestrians=7)], [other], {"bottleneck": 9})
     with pytest.raises(SystemExit):
         ablation.main(["--configs", "c:0.1:0.1:4:2.0:0", "--scenes", "bottleneck:9", "--out", str(out)])
+
+
+def test_rows_record_whether_people_plan_around_fallen_bodies():
+    # left out or 0: NavConfig's default, on since 2026-12-06; rows record the value the run used
+    assert ablation.parse_config("c:0.1:0.1:4")["fallen_obstacles"] is True
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:0")["fallen_obstacles"] is True
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:1")["fallen_obstacles"] is True
+    assert ablation.parse_config("c:0.1:0.1:4:2.0:human_door_turns")["fallen_obstacles"] is True
+    off = ablation.parse_config("c:0.1:0.1:4:2.0:human_door_turns+human_fallen_obstacles=false")
+    assert off["fallen_obstacles"] is False
+    assert ablation.env_overrides(off["env_flags"])["human_fallen_obstacles"] is False

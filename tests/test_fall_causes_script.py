@@ -38,10 +38,19 @@ def test_cascades_and_causes(tmp_path, capsys):
     assert s["in_runs_with_3plus"] == pytest.approx(0.8)
     assert s["causes"] == {"fallen body": 2, "person": 1, "wall": 1, "none": 1}
     assert s["near_fallen"] == 2
+    # tipped by a lying body 4 s and 3 s after the fall before them: the second counts as knocked over
+    assert s["fallen_body_after_s"] == 3.5 and s["fallen_body_within_3s"] == 1
     assert s["success_per_run_no_falls"] == 95.0 and s["success_per_run_3plus_falls"] == 20.0
+    # --counts: the older row too, by its fall count
+    read_all, skipped = fc.read([str(f)], counts=True)
+    assert len(read_all) == 5 and skipped == 0
+    assert fc.summarize(read_all, within=1.5, near=0.5)["falls"] == 5
     assert fc.main([str(f), "--by-scene", "--json"]) == 0
     lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
     assert [(x["scene"], x["falls"]) for x in lines] == [("corridor", 1), ("lobby", 4)]
+    assert fc.main([str(f), "--scenes", "corridor", "--json"]) == 0
+    (only,) = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert only["runs"] == 1 and only["falls"] == 1
 
 
 def test_bad_input_is_named(tmp_path, capsys):

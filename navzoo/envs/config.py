@@ -78,8 +78,10 @@ class NavConfig:
             as collisions (a walking humanoid's hands and feet reach up to ~0.1 m beyond a 0.3 m
             disc). Off = the disc model alone, as CrowdNav (the CrowdNav presets turn it off).
         human_fallen_obstacles: physics (AMP) pedestrians that fall become obstacles in the other
-            pedestrians' A* paths, and the people whose path passes a fallen body plan around it
-            (:mod:`navzoo.envs.fallen`); off by default.
+            pedestrians' A* paths, stamped where they come to rest, and the people whose path passes a
+            fallen body plan around it (:mod:`navzoo.envs.fallen`); on by default since 2026-12-06 (off
+            before: people walked into bodies lying on the floor and fell over them, in cascades). Kinematic
+            pedestrians never fall.
         human_door_entries: physics (AMP) pedestrians' A* paths cross each door on its axis, from an
             entry point 0.7 m before it to an exit point 0.7 m after it (:mod:`navzoo.envs.doors`);
             off by default.
@@ -235,7 +237,7 @@ class NavConfig:
     human_radius: float = 0.3
     human_body_contacts: bool = True
     human_contact_penalty: bool = True
-    human_fallen_obstacles: bool = False
+    human_fallen_obstacles: bool = True
     human_door_entries: bool = False
     human_replan_blocked: Literal["amp", "all", "off"] = "off"
     human_speed: tuple[float, float] = (1.0, 1.4)
