@@ -129,7 +129,7 @@ def test_fall_log_tells_a_fallen_body_from_a_standing_person():
 
     def step():
         env.step({a: zero for a in env.agents})
-        log.update(env.human_map_contact, env.human_agent_contact, env.human_fallen)
+        log.update(env.human_map_contact, env.human_fallen)
 
     for _ in range(60):
         step()

@@ -347,7 +347,7 @@ def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str
         live = ~done
         if amp:
             map_now, agent_now, fallen = env.human_map_contact, env.human_agent_contact, env.human_fallen
-            falls.update(map_now, agent_now, fallen)
+            falls.update(map_now, fallen)
         else:
             (map_now, agent_now), fallen = kinematic_contacts(env), np.zeros(n, dtype=bool)
         m_flag |= map_now & live
@@ -411,29 +411,22 @@ class FallLog:
     def __init__(self, env) -> None:
         self.env = env
         n = env.n_humans
-        self.ids = list(env.amp.ids)
-        self.index = {b: j for j, b in enumerate(self.ids)}
+        self.index = {b: j for j, b in enumerate(env.amp.ids)}
         self.last_agent = np.full(n, -np.inf)
         self.last_map = np.full(n, -np.inf)
         self.last_fallen = np.full(n, -np.inf)
         self.prev = np.zeros(n, dtype=bool)
         self.events: list[dict[str, Any]] = []
 
-    def update(self, map_now: np.ndarray, agent_now: np.ndarray, fallen: np.ndarray) -> None:
+    def update(self, map_now: np.ndarray, fallen: np.ndarray) -> None:
+        """After an env step: ``map_now`` (H,) touching a wall or an obstacle, ``fallen`` (H,) down (the env's)."""
         env, t = self.env, float(self.env.sim_time)
-        # contact with a fallen body is contact with "a human" to env.amp.contacts(): tell the two apart here
-        touching_fallen = np.zeros(len(self.ids), dtype=bool)
-        for j in np.flatnonzero(self.prev):
-            for c in p.getContactPoints(bodyA=self.ids[j], physicsClientId=env.client):
-                k = self.index.get(c[2])
-                if k is not None and k != j and not self.prev[k]:
-                    touching_fallen[k] = True
+        # a fallen body is "a human" to env.amp.contacts(): tell its touches (fallen before this step) from the others
+        touched = env.amp.touched
+        down = {b for b, k in self.index.items() if self.prev[k]}
+        touching_fallen = np.array([bool(bs & down) for bs in touched]) & ~self.prev
         self.last_fallen[touching_fallen] = t
-        agent = agent_now & ~touching_fallen
-        for k in np.flatnonzero(agent_now & touching_fallen):  # also touching someone standing, or a robot?
-            agent[k] = any(self._upright_other(k, c[2])
-                           for c in p.getContactPoints(bodyA=self.ids[k], physicsClientId=env.client))
-        self.last_agent[agent] = t
+        self.last_agent[[bool(bs - down) for bs in touched]] = t  # a standing person or a robot
         self.last_map[map_now] = t
         new = np.flatnonzero(fallen & ~self.prev)
         if new.size:
@@ -463,12 +456,6 @@ class FallLog:
         root = self.env.amp.state()["root_pos"][:, :2]
         for e in self.events:
             e["slid_m"] = round(float(np.hypot(root[e["id"], 0] - e["x"], root[e["id"], 1] - e["y"])), 2)
-
-    def _upright_other(self, j: int, body: int) -> bool:
-        """Whether PyBullet body ``body``, touched by pedestrian ``j``, is a robot or another pedestrian still up."""
-        if body in self.index:
-            return self.index[body] != j and not self.prev[self.index[body]]
-        return self.env._body_kind.get(body) == "robot"
 
 
 FALL_CAUSE_S = 1.5

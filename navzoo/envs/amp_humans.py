@@ -538,6 +538,8 @@ class AmpHumans:
         self.k_prog = np.zeros(self.n, dtype=int)  # index of each person's current target point
         self.lag_all = env.diffusion is not None or LAG_LIMIT_RULES  # every target held to LAG_LIMIT_S (progress_index)
         self.fallen = np.zeros(self.n, dtype=bool)
+        # each pedestrian's touched pedestrians' and robots' PyBullet body ids in the last physics step (contacts())
+        self.touched: list[set[int]] = [set() for _ in range(self.n)]
         self.still_s = np.zeros(self.n)  # how long each body has stood (speed < STALL_SPEED), for STALL_WARP_S
         self.stance = np.zeros(self.n)  # running mean of foot_split (STANCE_TAU_S), updated by task_reward
         wall = env.config.amp_wall_strength
@@ -822,11 +824,12 @@ class AmpHumans:
 
     def contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(H,) bools: touching a scene obstacle; touching another pedestrian or a robot; touching a robot
-        (last physics step)."""
+        (last physics step). Also keeps which pedestrians and robots each one touched (``touched``, body ids)."""
         env = self.env
         map_hit = np.zeros(self.n, dtype=bool)
         agent_hit = np.zeros(self.n, dtype=bool)
         robot_hit = np.zeros(self.n, dtype=bool)
+        self.touched = [set() for _ in range(self.n)]
         for j, body in enumerate(self.ids):
             for c in p.getContactPoints(bodyA=body, physicsClientId=self.client):
                 kind = env._body_kind.get(c[2])
@@ -835,4 +838,5 @@ class AmpHumans:
                 elif kind in ("human", "robot") and c[2] != body:
                     agent_hit[j] = True
                     robot_hit[j] |= kind == "robot"
+                    self.touched[j].add(c[2])
         return map_hit, agent_hit, robot_hit
