@@ -15,6 +15,8 @@ skipped and counted, or with ``--counts`` taken for their fall counts alone). Pe
 - for the falls tipped by a lying body, the median time since the fall before them in the run
   (``fallen_body_after_s``) and how many came within ``KNOCKED_S`` of it (knocked over by a falling body rather
   than walking into a lying one);
+- ``slid_m_median`` / ``slid_m_max`` (``--json``): how far the bodies slid after they were found fallen (rows since
+  the FallLog records it);
 - successes per run in runs without falls and in runs with ``CASCADE_RUN`` falls or more: a fallen person makes no
   more trips, so a cascade costs a run much of its successes.
 """
@@ -72,6 +74,7 @@ def summarize(rows: list[dict], within: float, near: float) -> dict:
         ev = r.get("fall_events", [])
         gaps += [e["t"] - max(x["t"] for x in ev[:k]) for k, e in enumerate(ev)
                  if k and fall_cause(e, within) == "fallen body"]
+    slid = [e["slid_m"] for e in events if e.get("slid_m") is not None]  # how far bodies slid once found fallen
     cascade = [r for r, f in zip(rows, falls, strict=True) if f >= CASCADE_RUN]
     calm = [r for r, f in zip(rows, falls, strict=True) if f == 0]
     total = sum(falls)
@@ -83,6 +86,8 @@ def summarize(rows: list[dict], within: float, near: float) -> dict:
         "causes": causes,
         "near_fallen": sum(1 for e in events if e["fallen_m"] is not None and e["fallen_m"] <= near),
         "fallen_body_after_s": round(float(np.median(gaps)), 1) if gaps else None,
+        "slid_m_median": round(float(np.median(slid)), 2) if slid else None,
+        "slid_m_max": round(float(max(slid)), 2) if slid else None,
         f"fallen_body_within_{KNOCKED_S:g}s": sum(1 for g in gaps if g <= KNOCKED_S),
         "success_per_run_no_falls": round(sum(r["success"] for r in calm) / len(calm), 1) if calm else None,
         f"success_per_run_{CASCADE_RUN}plus_falls": (round(sum(r["success"] for r in cascade) / len(cascade), 1)

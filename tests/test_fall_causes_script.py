@@ -40,6 +40,7 @@ def test_cascades_and_causes(tmp_path, capsys):
     assert s["near_fallen"] == 2
     # tipped by a lying body 4 s and 3 s after the fall before them: the second counts as knocked over
     assert s["fallen_body_after_s"] == 3.5 and s["fallen_body_within_3s"] == 1
+    assert s["slid_m_median"] is None  # these events predate slid_m
     assert s["success_per_run_no_falls"] == 95.0 and s["success_per_run_3plus_falls"] == 20.0
     # --counts: the older row too, by its fall count
     read_all, skipped = fc.read([str(f)], counts=True)
