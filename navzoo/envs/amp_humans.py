@@ -101,6 +101,12 @@ LAG_LIMIT_RULES = True
 # LAG_LIMIT_RULES is on (the default since 2026-12-01), which holds every plan, the first of a trip too.
 START_REPLAN_S = 0.0
 START_LAG = False
+# An event replan (someone reached a goal, began to yield, was granted a door, or got a new A* path round a
+# fallen body or a hidden waypoint) rolls the crowd out again from the bodies. EVENT_REPLAN_OWN = True gives new
+# targets (and, with the diffusion crowd, newly sampled plans) only to the people of the event; the others keep
+# theirs until the regular replan (every amp_replan_seconds, from the oldest plan), and the rollout still moves
+# everyone so the new targets see them. False: every event re-rolls every person's target (the behaviour so far).
+EVENT_REPLAN_OWN = False
 # Diffusion crowd with physics bodies: the target rollout heads for each plan's point this far ahead, at the
 # plan's pace but at most DIFFUSION_SPEED_CAP times the person's preferred speed (docs/crowd_log.md "Diffusion
 # plans for physics bodies"). 0.8 s (as kinematic diffusion pedestrians look ahead) until 2026-12-01; 0.4 s
@@ -603,8 +609,9 @@ class AmpHumans:
         k = self.k_prog[:, None] + self.stride * np.arange(1, N_WAYPOINTS + 1)[None, :]
         return np.take_along_axis(self.paths, np.minimum(k, self.path_len - 1)[..., None], axis=1)
 
-    def plan_all(self) -> None:
-        """Roll the crowd model out from the bodies' actual states: new target trajectories for all."""
+    def plan_all(self, who: np.ndarray | None = None) -> None:
+        """Roll the crowd model out from the bodies' actual states: new target trajectories for all, or only for
+        the people of ``who`` (indices among the pedestrians; the rollout still moves everyone)."""
         env = self.env
         R, N = env.n_robots, env.n_total
         h = np.arange(R, N)
@@ -655,7 +662,7 @@ class AmpHumans:
         if diffusion is not None:
             # The sampled plans give the direction and pace (as for kinematic diffusion pedestrians);
             # social force rolls them out from the bodies, so bodies keep their distance.
-            diffusion.plan_now(env)
+            diffusion.plan_now(env, who)
             cap = np.minimum(vmax, v_pref * DIFFUSION_SPEED_CAP)[:, None]
             stalled = np.flatnonzero((self.still_s >= STALL_WARP_S) & (v_pref > 0.0)) if STALL_WARP_S > 0 \
                 else np.zeros(0, dtype=int)
@@ -739,12 +746,14 @@ class AmpHumans:
             prev_vel = vel
             pos = pos + PLAN_DT * vel
             out[:, k + 1] = pos
-        self.paths = resample(out, PLAN_DT, 1.0 / CONTROL_HZ, self.path_len)
-        self.plan_t[:] = self.t
-        self.k_prog[:] = 0
+        paths = resample(out, PLAN_DT, 1.0 / CONTROL_HZ, self.path_len)
+        mine = np.arange(self.n) if who is None else np.asarray(who, dtype=int)
+        self.paths[mine] = paths[mine]
+        self.plan_t[mine] = self.t
+        self.k_prog[mine] = 0
         goals = env.goals_reached[h]
-        self.starting = goals != self._goals_seen
-        self._goals_seen = goals.copy()
+        self.starting[mine] = goals[mine] != self._goals_seen[mine]
+        self._goals_seen[mine] = goals[mine]
 
     def narrow_passages(self, paths: list[np.ndarray], radius: np.ndarray,
                         margin: float | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -796,13 +805,23 @@ class AmpHumans:
                 k_time = np.where(held, lead, k_time)
         self.k_prog = k_time
 
-    def after_step(self, replan: bool) -> None:
-        """Falls are sticky; replan when due (or when asked, e.g. after new goals)."""
+    def after_step(self, replan: bool | np.ndarray) -> None:
+        """Falls are sticky; replan when due (or when asked, e.g. after new goals). ``replan`` is a bool, or (H,)
+        bools naming the people of the events that ask for it: with ``EVENT_REPLAN_OWN`` only those get new
+        targets (unless the regular replan is due, which replans everyone)."""
         self.fallen |= self.bodies.fallen()
+        who = np.asarray(replan, dtype=bool)
+        if who.ndim and who.shape != (self.n,):
+            raise ValueError(f"replan must be a bool or ({self.n},) bools, got shape {who.shape}")
+        asked = bool(who.any())
         extra = 0 <= self.extra_replan <= self.t
-        if replan or extra or self.t - int(self.plan_t.min()) >= self.replan_steps:
+        if extra or self.t - int(self.plan_t.min()) >= self.replan_steps:
             self.plan_all()
-            self.extra_replan = self.t + int(round(START_REPLAN_S * CONTROL_HZ)) if replan and START_REPLAN_S > 0 else -1
+        elif asked:
+            self.plan_all(np.flatnonzero(who) if EVENT_REPLAN_OWN and who.ndim else None)
+        else:
+            return
+        self.extra_replan = self.t + int(round(START_REPLAN_S * CONTROL_HZ)) if asked and START_REPLAN_S > 0 else -1
 
     def task_reward(self) -> dict[str, np.ndarray]:
         """The controller's task reward terms (the paper's r_tau, r_e, r_d with its alpha values), and

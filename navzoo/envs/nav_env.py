@@ -356,7 +356,7 @@ class NavEnv(ParallelEnv):
         self._fallen_planners: dict[float, AStarPlanner] = {}
         self._fallen_points = np.zeros((0, 2))
         self._fallen_stamped: dict[int, np.ndarray] = {}  # pedestrian -> its root and key bodies (K+1, 2) when stamped
-        self._fallen_replanned = False
+        self._fallen_replanned = np.zeros(H, dtype=bool)  # who got a path round a fallen body since the last step
         self._wp_hidden = np.zeros(N)  # seconds each agent's current waypoint has been out of its sight
         self._last_replan = np.full(N, -np.inf)  # sim time of each pedestrian's last blocked-path replan
         # Replayed people walk their recorded track: their "path" is the track's last point.
@@ -583,7 +583,7 @@ class NavEnv(ParallelEnv):
             new_falls = np.flatnonzero(self.amp.fallen & ~self.human_fallen)
             self.human_fallen = self.amp.fallen.copy()
             if cfg.human_fallen_obstacles and (new_falls.size or self._fallen_moved()):
-                self._fallen_replanned = self._avoid_fallen() or self._fallen_replanned
+                self._fallen_replanned = self._avoid_fallen() | self._fallen_replanned
         r_pos, r_yaw, tilt = self.robots.read_state()
         nan_state = bool(~np.isfinite(r_pos[robot_alive]).all() or ~np.isfinite(r_yaw[robot_alive]).all())
         if not nan_state:
@@ -623,9 +623,9 @@ class NavEnv(ParallelEnv):
         new_doors = self._update_door_turns(self.sim_time + dt)
         if self.amp is not None and hum.size:
             amp_terms = self.amp.task_reward()
-            self.amp.after_step(replan=bool(human_reached.any() or new_yields.any() or self._fallen_replanned
-                                            or blocked_replanned or new_doors.any()))
-            self._fallen_replanned = False
+            self.amp.after_step(replan=human_reached | new_yields | self._fallen_replanned | blocked_replanned
+                                | new_doors)
+            self._fallen_replanned[:] = False
         # After a re-target a pedestrian's distance jumps to its new goal: that step earns the goal
         # reward, not a progress penalty, so its previous distance is taken as the new one.
         d_prev = np.where(human_reached_mask(self.n_total, R, human_reached), self.d_goal, d_goal_prev)
@@ -980,10 +980,10 @@ class NavEnv(ParallelEnv):
         return any(float(np.max(np.linalg.norm(now[j] - was, axis=1))) > FALLEN_RESTAMP_M
                    for j, was in self._fallen_stamped.items())
 
-    def _avoid_fallen(self) -> bool:
+    def _avoid_fallen(self) -> np.ndarray:
         """Stamp the bodies of the fallen pedestrians, where they lie now, into the pedestrians' planning grid
         (a fresh copy of the bare grid) and plan again for the standing ones whose path passes them; returns
-        whether any path changed (:mod:`navzoo.envs.fallen`). Called on each new fall and whenever a fallen
+        (H,) whose path changed (:mod:`navzoo.envs.fallen`). Called on each new fall and whenever a fallen
         body has moved on from where it was stamped (:meth:`_fallen_moved`)."""
         R = self.n_robots
         lying = self._fallen_lying()
@@ -992,7 +992,7 @@ class NavEnv(ParallelEnv):
         self._fallen_stamped = lying
         self._fallen_grid = stamp_fallen(self.grid, pts)
         self._fallen_planners = {}
-        changed = False
+        changed = np.zeros(self.n_humans, dtype=bool)
         for j in np.flatnonzero(~self.human_fallen & ~self.arrived[R:]):
             i = R + j
             near = float(self.radius[i]) + FALLEN_BODY_RADIUS + 0.1
@@ -1002,22 +1002,22 @@ class NavEnv(ParallelEnv):
             if path is not None:  # else no way around (it lies in the only door): keep the path and wait
                 self.paths[i] = path
                 self.wp_index[i] = 0
-                changed = True
+                changed[j] = True
         return changed
 
-    def _replan_blocked_humans(self, dt: float) -> bool:
+    def _replan_blocked_humans(self, dt: float) -> np.ndarray:
         """``NavConfig.human_replan_blocked``: pedestrians whose current waypoint has been out of their line
         of sight (on their bare planning grid, from the nearest free point) for ``REPLAN_HIDDEN_S`` plan a
         new A* path from where they are, at most once per ``REPLAN_EVERY_S``. Without it, a person the crowd
         pushed round a corner is pulled straight at a waypoint behind the corner and stays there (social
-        force has no way round). Returns whether any path changed (the physics pedestrians then roll out
+        force has no way round). Returns (H,) whose path changed (the physics pedestrians then roll out
         new targets at once)."""
         mode = self.config.human_replan_blocked
+        changed = np.zeros(self.n_humans, dtype=bool)
         if mode == "off" or self.replay is not None or (mode == "amp" and self.amp is None):
-            return False
+            return changed
         R = self.n_robots
         fallen = self.human_fallen if self.amp is not None else np.zeros(self.n_humans, dtype=bool)
-        changed = False
         for j in np.flatnonzero(~fallen & ~self.arrived[R:]):
             i = R + j
             path = self.paths[i]
@@ -1036,7 +1036,7 @@ class NavEnv(ParallelEnv):
                 self.paths[i] = new
                 self.wp_index[i] = 0
                 self._wp_hidden[i] = 0.0
-                changed = True
+                changed[j] = True
         return changed
 
     def _retarget_humans(self) -> np.ndarray:
