@@ -382,3 +382,39 @@ def test_start_replan_plans_once_more_after_a_replan_that_new_goals_asked_for(mo
     amp.after_step(replan=False)
     assert (amp.plan_t == t0 + 15).all() and amp.extra_replan == -1  # once, then the regular period
     env.close()
+
+
+def test_event_replan_own_gives_new_targets_only_to_the_people_of_the_event(monkeypatch):
+    from navzoo.envs import amp_humans
+    from navzoo.envs.nav_env import NavEnv
+
+    assert amp_humans.EVENT_REPLAN_OWN is False
+    env = NavEnv(scene="circle_crossing", n_robots=0, n_humans=3, human_model="amp", dt=1 / 30, time_limit=10.0)
+    env.reset(seed=0)
+    amp = env.amp
+    for _ in range(10):  # walk a little, so that a new rollout differs from the plan of the reset
+        env.step({a: env.action_space(a).sample() * 0 for a in env.agents})
+    t_before = amp.plan_t.copy()
+    who = np.array([False, True, False])
+    amp.t += 1
+    amp.after_step(replan=who)  # off: an event re-rolls everyone
+    assert (amp.plan_t == amp.t).all() and (amp.k_prog == 0).all()
+    monkeypatch.setattr(amp_humans, "EVENT_REPLAN_OWN", True)
+    for _ in range(5):
+        env.step({a: env.action_space(a).sample() * 0 for a in env.agents})
+    paths, plan_t, k_prog = amp.paths.copy(), amp.plan_t.copy(), amp.k_prog.copy()
+    assert (k_prog > 0).all() and (plan_t > t_before).all()
+    amp.t += 1
+    amp.after_step(replan=who)
+    assert amp.plan_t.tolist() == [plan_t[0], amp.t, plan_t[2]]
+    assert amp.k_prog.tolist() == [k_prog[0], 0, k_prog[2]]
+    np.testing.assert_array_equal(amp.paths[[0, 2]], paths[[0, 2]])  # the others keep their targets
+    assert not np.allclose(amp.paths[1], paths[1])
+    amp.after_step(replan=np.zeros(3, dtype=bool))  # no event, not due: nothing changes
+    assert amp.plan_t.tolist() == [plan_t[0], amp.t, plan_t[2]]
+    amp.t = int(amp.plan_t.min()) + amp.replan_steps  # the oldest plan is due: everyone plans again
+    amp.after_step(replan=who)
+    assert (amp.plan_t == amp.t).all()
+    with pytest.raises(ValueError, match="replan must be"):
+        amp.after_step(replan=np.zeros(2, dtype=bool))
+    env.close()
