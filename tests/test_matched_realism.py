@@ -99,3 +99,21 @@ def test_a_walker_who_cannot_make_it_is_counted_with_its_closest_approach():
     assert row["arrived"] == 0 and row["ratio"] == []
     (closest, final), = row["missed"]
     assert 0.5 < closest < 12.0 and closest == pytest.approx(final, abs=0.05)
+
+
+def test_fallen_in_map_gives_the_diffusion_crowd_the_grid_with_the_lying_bodies():
+    from types import SimpleNamespace
+
+    from navzoo.agents.diffusion.crowd import DiffusionCrowd
+
+    crowd = SimpleNamespace(fallen_in_map=False, weights=(1.0, 10.0, 10.0))
+    bare, stamped = object(), object()
+    env = SimpleNamespace(grid=bare, _fallen_grid=None)
+    assert DiffusionCrowd._map_grid(crowd, env) is bare
+    env._fallen_grid = stamped
+    assert DiffusionCrowd._map_grid(crowd, env) is bare  # off: the bare scene
+    mr.apply_diffusion_settings(crowd, {"fallen_in_map": 1.0})
+    assert crowd.fallen_in_map is True
+    assert DiffusionCrowd._map_grid(crowd, env) is stamped
+    env._fallen_grid = None  # nobody lies on the floor yet
+    assert DiffusionCrowd._map_grid(crowd, env) is bare

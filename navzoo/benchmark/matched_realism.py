@@ -130,7 +130,7 @@ def scenarios(recording: str, every: float = 20.0, horizon: float = 12.0, min_re
 DIFFUSION_SETTINGS = ("n_samples", "replan_s", "guidance_scale", "path_weight", "blend_s", "smooth_weight",
                       "agent_buffer", "target_weight", "agent_weight", "map_weight",
                       "past_goal_turn_deg", "path_in_sight", "hold_in_sight",
-                      "hold_floor_s", "floor_in_sight", "floor_ray")
+                      "hold_floor_s", "floor_in_sight", "floor_ray", "fallen_in_map")
 
 
 def check_diffusion_settings(settings: dict[str, float] | None) -> dict[str, float]:

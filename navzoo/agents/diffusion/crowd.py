@@ -49,6 +49,7 @@ from navzoo.forecast import data as fdata
 
 if TYPE_CHECKING:
     from navzoo.envs.nav_env import NavEnv
+    from navzoo.world.occupancy import OccupancyGrid
 
 __all__ = ["DiffusionCrowd", "StallSwitch", "default_model_dir", "model_dir"]
 
@@ -386,6 +387,10 @@ class DiffusionCrowd:
             (:func:`ramped_distances`), instead of the preferred pace from the first step. 0 = off (the default):
             ramps of 0.3, 0.5 and 1.0 left the walked acceleration as it was (docs/crowd.md, "Where the roughness
             comes from: goals, corners and the walker").
+        fallen_in_map: physics pedestrians that lie on the floor are in the map the model sees and in the map
+            guidance: the planning grid with their footprints stamped (``NavConfig.human_fallen_obstacles``,
+            :mod:`navzoo.envs.fallen`), as the people's A* paths have them; off, the bare scene's grid (a lying body
+            is then only a disc at its root, in the people guidance).
         k_neighbors, neighbor_radius: neighbours given to the model.
         seed: seed of the sampling noise (with the env's step count, so replays are exact).
         device: torch device of the model.
@@ -398,7 +403,7 @@ class DiffusionCrowd:
                  path_weight: float = 20.0, blend_s: float = 1.2, smooth_weight: float = 0.0,
                  agent_buffer: float = 0.2, past_goal_turn_deg: float = 0.0, path_in_sight: bool = True,
                  hold_in_sight: bool = True, hold_floor_s: float = 2.0, floor_in_sight: bool = True,
-                 floor_ray: bool = False, pace_ramp: float = 0.0) -> None:
+                 floor_ray: bool = False, pace_ramp: float = 0.0, fallen_in_map: bool = False) -> None:
         if model is None or isinstance(model, (str, Path)):
             from navzoo.agents.diffusion.trainer import load_model
 
@@ -437,6 +442,7 @@ class DiffusionCrowd:
         self.hold_floor_s = float(hold_floor_s)
         self.floor_in_sight = bool(floor_in_sight)
         self.floor_ray = bool(floor_ray)
+        self.fallen_in_map = bool(fallen_in_map)
         if not pace_ramp >= 0:
             raise ValueError(f"pace_ramp must be >= 0, got {pace_ramp!r}")
         self.pace_ramp = float(pace_ramp)
@@ -490,6 +496,11 @@ class DiffusionCrowd:
         return {"hist": self.hist[people].copy(), "neigh": neigh, "neigh_mask": mask,
                 "dt": np.full(B, MODEL_DT), "origin": np.zeros((B, 2)), "rot": np.repeat(np.eye(2)[None], B, axis=0)}
 
+    def _map_grid(self, env: NavEnv) -> OccupancyGrid:
+        """The occupancy grid of the model's map input and the map guidance (``fallen_in_map``)."""
+        stamped = getattr(env, "_fallen_grid", None)
+        return stamped if self.fallen_in_map and stamped is not None else env.grid
+
     def plan_now(self, env: NavEnv, who: np.ndarray | None = None) -> np.ndarray:
         """Plan pedestrians now: all of them, or those of ``who`` (indices among the pedestrians, 0..n_humans-1).
 
@@ -519,7 +530,7 @@ class DiffusionCrowd:
             "dt": torch.full((B,), MODEL_DT),
         }
         if self.cfg.map_cells:
-            occ = env.grid.crop_many(env.pos[people], heading, MAP_EXTENT, self.cfg.map_cells)
+            occ = self._map_grid(env).crop_many(env.pos[people], heading, MAP_EXTENT, self.cfg.map_cells)
             batch["map"] = torch.as_tensor(occ)
             batch["has_map"] = torch.ones(B, dtype=torch.bool)
         # Guidance: the path point v_pref x horizon ahead, others' current plans, the scene's walls.
@@ -565,7 +576,7 @@ class DiffusionCrowd:
         offs = (np.arange(n_cells) + 0.5 - n_cells / 2) * (MAP_EXTENT / n_cells)
         lx, ly = np.meshgrid(offs, offs)
         pts = np.stack([lx, ly], -1).reshape(1, -1, 2).repeat(B, 0)
-        dist = env.grid.distance_at(fdata.to_world(pts, local)).reshape(B, n_cells, n_cells)
+        dist = self._map_grid(env).distance_at(fdata.to_world(pts, local)).reshape(B, n_cells, n_cells)
         costs.append(map_collision_cost(torch.as_tensor(dist, dtype=torch.float32), MAP_EXTENT,
                                         radius=float(env.config.human_radius), weight=m_w))
         if self.smooth_weight > 0:  # plans that continue the current velocity and turn gently
