@@ -10,13 +10,14 @@
 # CONFIG is kdtf... (diffusion targets) or skdtf... (social-force targets; e.g. skdtfr), today's defaults with
 # human_fallen_obstacles on, under that name.
 # Each run writes $OUT/parts/CONFIG_SCENE_SEED.jsonl (a call cut short keeps the runs it finished); at the end the
-# parts are joined into $OUT/CONFIG_fallen.jsonl. SECS (default 200) sets the run length.
+# parts are joined into $OUT/CONFIG_fallen.jsonl. SECS (default 200) sets the run length; DSET (e.g. fallen_in_map=1)
+# passes --diffusion-set to the runs with diffusion targets.
 set -u
 if [ -d .whl ] && [ -z "${PYTHON:-}" ]; then  # the device machine: bring the wheels
   python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/*.whl 2>&1 | tail -1
   export PYTHONPATH=/tmp/site:$PWD
 fi
-export OMP_NUM_THREADS=1 PYTHON=${PYTHON:-python3} SECS=${SECS:-200}
+export OMP_NUM_THREADS=1 PYTHON=${PYTHON:-python3} SECS=${SECS:-200} DSET=${DSET:-}
 lscpu | grep "Model name"
 export S="SFM_SIDE_BIAS=0.4+SFM_SIDE_NARROW_REACH=1.5"
 one() {
@@ -25,7 +26,9 @@ one() {
     skdtf*) cfg="$1:0.1:0.1:4:2.0:human_door_turns+human_fallen_obstacles::::1:::::1:$S"; crowd=sfm ;;
     *) echo "unknown configuration $1 (kdtf... or skdtf...)" >&2; return 1 ;;
   esac
-  timeout 1500 "$PYTHON" scripts/amp_target_ablation.py --crowd $crowd --scenes "$2" --configs "$cfg" --seeds "$3" \
+  dset=()
+  if [ "$crowd" = diffusion ] && [ -n "${DSET:-}" ]; then dset=(--diffusion-set "$DSET"); fi
+  timeout 1500 "$PYTHON" scripts/amp_target_ablation.py --crowd $crowd --scenes "$2" --configs "$cfg" --seeds "$3" "${dset[@]}" \
     --seconds "$SECS" --workers 1 --out "$OUT/parts/$1_$2_$3.jsonl" > "$OUT/parts/$1_$2_$3.log" 2>&1
 }
 export -f one
