@@ -105,7 +105,9 @@ START_LAG = False
 # fallen body or a hidden waypoint) rolls the crowd out again from the bodies. EVENT_REPLAN_OWN = True gives new
 # targets (and, with the diffusion crowd, newly sampled plans) only to the people of the event; the others keep
 # theirs until the regular replan (every amp_replan_seconds, from the oldest plan), and the rollout still moves
-# everyone so the new targets see them. False: every event re-rolls every person's target (the behaviour so far).
+# everyone so the new targets see them. False: every event re-rolls every person's target. On, diffusion targets
+# lost 4.8 +- 1.1 (Intel seeds 4-7) and 4.6 +- 1.3 (AMD seeds 0-3) points per limit in the eight scenes, agent contacts
+# doubled (docs/crowd_log.md, "The shipped fallen-body planning on the Intel device; event replans ...").
 EVENT_REPLAN_OWN = False
 # Diffusion crowd with physics bodies: the target rollout heads for each plan's point this far ahead, at the
 # plan's pace but at most DIFFUSION_SPEED_CAP times the person's preferred speed (docs/crowd_log.md "Diffusion

@@ -390,7 +390,9 @@ class DiffusionCrowd:
         fallen_in_map: physics pedestrians that lie on the floor are in the map the model sees and in the map
             guidance: the planning grid with their footprints stamped (``NavConfig.human_fallen_obstacles``,
             :mod:`navzoo.envs.fallen`), as the people's A* paths have them; off, the bare scene's grid (a lying body
-            is then only a disc at its root, in the people guidance).
+            is then only a disc at its root, in the people guidance). On, the AMD runs with a fall were level in the
+            eight scenes and behind held out (−3.2 ± 2.2 successes per run), so off (docs/crowd_log.md, "The lying
+            bodies in the diffusion model's map").
         k_neighbors, neighbor_radius: neighbours given to the model.
         seed: seed of the sampling noise (with the env's step count, so replays are exact).
         device: torch device of the model.
