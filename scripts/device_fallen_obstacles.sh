@@ -8,7 +8,9 @@
 #
 # JOBS (default docs/results/fallen_obstacles/jobs_protocol.txt) has one run per line: CONFIG SCENE[:PEOPLE] SEED, where
 # CONFIG is kdtf... (diffusion targets) or skdtf... (social-force targets; e.g. skdtfr), today's defaults with
-# human_fallen_obstacles on, under that name.
+# human_fallen_obstacles on, under that name. FLAGS (default human_door_turns+human_fallen_obstacles) replaces the FALLEN
+# field for every run, e.g. FLAGS=human_door_turns+amp_replan_seconds=1.0 with the names kdtp1 / skdtp1 (kd... and skd...
+# names are accepted).
 # Each run writes $OUT/parts/CONFIG_SCENE_SEED.jsonl (a call cut short keeps the runs it finished); at the end the
 # parts are joined into $OUT/CONFIG_fallen.jsonl. SECS (default 200) sets the run length; DSET (e.g. fallen_in_map=1)
 # passes --diffusion-set to the runs with diffusion targets.
@@ -18,13 +20,14 @@ if [ -d .whl ] && [ -z "${PYTHON:-}" ]; then  # the device machine: bring the wh
   export PYTHONPATH=/tmp/site:$PWD
 fi
 export OMP_NUM_THREADS=1 PYTHON=${PYTHON:-python3} SECS=${SECS:-200} DSET=${DSET:-}
+export FLAGS=${FLAGS:-human_door_turns+human_fallen_obstacles}
 lscpu | grep "Model name"
 export S="SFM_SIDE_BIAS=0.4+SFM_SIDE_NARROW_REACH=1.5"
 one() {
   case $1 in
-    kdtf*) cfg="$1:0.1:0.1:4:2.0:human_door_turns+human_fallen_obstacles::::::::::$S"; crowd=diffusion ;;
-    skdtf*) cfg="$1:0.1:0.1:4:2.0:human_door_turns+human_fallen_obstacles::::1:::::1:$S"; crowd=sfm ;;
-    *) echo "unknown configuration $1 (kdtf... or skdtf...)" >&2; return 1 ;;
+    kd*) cfg="$1:0.1:0.1:4:2.0:$FLAGS::::::::::$S"; crowd=diffusion ;;
+    skd*) cfg="$1:0.1:0.1:4:2.0:$FLAGS::::1:::::1:$S"; crowd=sfm ;;
+    *) echo "unknown configuration $1 (kd... or skd...)" >&2; return 1 ;;
   esac
   dset=()
   if [ "$crowd" = diffusion ] && [ -n "${DSET:-}" ]; then dset=(--diffusion-set "$DSET"); fi

@@ -103,7 +103,11 @@ class NavConfig:
         dt: control period (s).
         physics_substeps: PyBullet steps per control step (``human_model="amp"``: fixed by the
             humanoids' 120 Hz physics, this field is ignored).
-        amp_replan_seconds: ``human_model="amp"``: period of the target trajectory rollouts (s).
+        amp_replan_seconds: ``human_model="amp"``: period of the target trajectory rollouts (s). 1.0 measured
+            ahead or level in every comparison so far (following protocol and held out, both target generators, AMD
+            and Intel CPUs; path error -25 %, up to 1.6 times the run time with diffusion targets); not yet the
+            default until the Intel seeds 6-7 are in (docs/crowd_log.md, "Replanning every second on the Intel
+            device ...").
         amp_progress_reward: ``human_model="amp"``: weight of a progress term added to the pedestrians'
             task reward: the body's speed toward the next waypoint of its path, as a share of its
             preferred speed, clipped to [-1, 1] (0 for fallen or arrived people;
