@@ -1,0 +1,50 @@
+"""scripts/device_fallen_obstacles.sh: each job line becomes the following run of its configuration name, with FLAGS."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPT = ROOT / "scripts" / "device_fallen_obstacles.sh"
+
+
+def _run(tmp_path: Path, jobs: str, **env: str) -> tuple[subprocess.CompletedProcess, dict[str, str]]:
+    """Run the script with ``PYTHON=echo`` (each run's log then holds its command line); logs by part name."""
+    (tmp_path / "jobs.txt").write_text(jobs)
+    out = tmp_path / "out"
+    full = {"PATH": "/usr/bin:/bin", "PYTHON": "echo", "P": "2", "OUT": str(out), "JOBS": str(tmp_path / "jobs.txt"),
+            **env}
+    proc = subprocess.run(["bash", str(SCRIPT)], cwd=tmp_path, env=full, capture_output=True, text=True)
+    logs = {p.stem: p.read_text() for p in (out / "parts").glob("*.log")}
+    return proc, logs
+
+
+@pytest.mark.skipif(shutil.which("xargs") is None or shutil.which("timeout") is None, reason="needs xargs and timeout")
+def test_names_pick_the_target_generator_and_flags_fill_the_fallen_field(tmp_path: Path) -> None:
+    proc, logs = _run(tmp_path, "kdtp1 doorway 4\nskdtp1 station 3\n", FLAGS="human_door_turns+amp_replan_seconds=1.0")
+    assert proc.returncode == 0, proc.stderr
+    assert set(logs) == {"kdtp1_doorway_4", "skdtp1_station_3"}
+    d, s = logs["kdtp1_doorway_4"].split(), logs["skdtp1_station_3"].split()
+    assert d[d.index("--crowd") + 1] == "diffusion" and s[s.index("--crowd") + 1] == "sfm"
+    assert d[d.index("--configs") + 1] == ("kdtp1:0.1:0.1:4:2.0:human_door_turns+amp_replan_seconds=1.0::::::::::"
+                                           "SFM_SIDE_BIAS=0.4+SFM_SIDE_NARROW_REACH=1.5")
+    # the social-force configuration sets the target generator's own fields (as in "Falls come in cascades")
+    assert s[s.index("--configs") + 1] == ("skdtp1:0.1:0.1:4:2.0:human_door_turns+amp_replan_seconds=1.0::::1:::::1:"
+                                           "SFM_SIDE_BIAS=0.4+SFM_SIDE_NARROW_REACH=1.5")
+    assert d[d.index("--seeds") + 1] == "4" and d[d.index("--scenes") + 1] == "doorway"
+    assert d[d.index("--out") + 1].endswith("parts/kdtp1_doorway_4.jsonl")
+
+
+@pytest.mark.skipif(shutil.which("xargs") is None or shutil.which("timeout") is None, reason="needs xargs and timeout")
+def test_default_flags_and_diffusion_settings_and_an_unknown_name(tmp_path: Path) -> None:
+    proc, logs = _run(tmp_path, "kdtfr lobby 0\nskdtfr lobby 0\nxyz lobby 0\n", DSET="fallen_in_map=1")
+    assert "unknown configuration xyz" in proc.stderr
+    d, s = logs["kdtfr_lobby_0"].split(), logs["skdtfr_lobby_0"].split()
+    assert d[d.index("--configs") + 1].startswith("kdtfr:0.1:0.1:4:2.0:human_door_turns+human_fallen_obstacles::")
+    # DSET reaches the runs with diffusion targets only
+    assert d[d.index("--diffusion-set") + 1] == "fallen_in_map=1" and "--diffusion-set" not in s
+    assert "xyz_lobby_0" not in logs
