@@ -463,3 +463,40 @@ def test_the_wall_strength_of_the_target_rollouts_is_a_config_field():
     for bad in (0, -0.3, float("nan"), float("inf"), True, "0.3"):
         with pytest.raises(ValueError, match="amp_wall_strength"):
             NavConfig(human_model="amp", dt=DT, amp_wall_strength=bad)
+
+
+@pytest.mark.parametrize("wait", [True, False])
+def test_a_person_whom_fallen_bodies_cut_off_waits_when_asked(wait):
+    """human_fallen_wait: a body across the doorway's only door leaves person 1 no way round; it stands (its target
+    trajectory stays where it is) instead of walking on into the body, walks on once the door is free again, and
+    a new goal it cannot reach is drawn again."""
+    env = _raw(scene="doorway", n_robots=0, n_humans=2, max_episode_steps_override=200, human_fallen_wait=wait)
+    env.reset(seed=1, options={"human_starts": [[2.0, 7.0], [5.0, 4.0]], "human_goals": [[2.0, 7.0], [13.0, 4.0]]})
+    before = env.paths[1].copy()
+    across = {0: np.array([[8.0, 4.0], [8.0, 3.2], [8.0, 4.8], [8.3, 3.5], [7.7, 4.5], [8.1, 4.0]])}  # root, key bodies
+    env._fallen_lying = lambda: across
+    env.human_fallen[0] = env.amp.fallen[0] = True
+    changed = env._avoid_fallen()
+    assert not env._fallen_grid.is_free(np.array([[8.0, 4.0]]))[0]
+    np.testing.assert_array_equal(env.paths[1], before)  # no way round: the old path is kept either way
+    assert changed[1] == wait and env.human_waiting_fallen[1] == wait and not env.human_waiting_fallen[0]
+    env.amp.plan_all()
+    reach = np.linalg.norm(env.amp.paths[1] - env.pos[1], axis=1).max()  # how far its target trajectory goes
+    assert (reach < 0.3) if wait else (reach > 1.0)
+    # the door is free again (the body was pushed on): the waiting person plans round and walks on
+    env._fallen_lying = lambda: {0: across[0] + np.array([2.5, 2.5])}
+    changed = env._avoid_fallen()
+    assert not env.human_waiting_fallen.any()
+    assert changed[1] == wait  # the person who walked on kept its path: nothing to change
+    # the door is blocked again and person 1 reaches a goal: it gets a new goal it can reach, or (none in
+    # FALLEN_GOAL_TRIES draws: the doorway draws goals across the door) it waits
+    env._fallen_lying = lambda: across
+    env._avoid_fallen()
+    assert env.human_waiting_fallen[1] == wait
+    env.d_goal[env.n_robots + 1] = 0.0
+    env._retarget_humans()
+    reachable = env._plan(env.n_robots + 1, env.pos[1], env.goal[1], fallback=False) is not None
+    assert env.human_waiting_fallen[1] == (wait and not reachable)
+    if not reachable:  # the old behaviour where no path leads to the goal: a straight line to it
+        np.testing.assert_array_equal(env.paths[1], env.goal[1][None])
+    env.close()

@@ -619,7 +619,7 @@ class AmpHumans:
         h = np.arange(R, N)
         pos, _, vel, _ = self.planar()
         goal = env.goal[h].copy()
-        v_pref = np.where(env.arrived[h] | self.fallen, 0.0, env.v_pref[h])
+        v_pref = np.where(env.arrived[h] | self.fallen | env.human_waiting_fallen, 0.0, env.v_pref[h])
         wp_index = env.wp_index[h].copy()
         paths = [env.paths[i] for i in h]
         rad = env.radius[h] + PLAN_MARGIN  # an articulated body swings beyond its disc: plan with room to spare

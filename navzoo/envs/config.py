@@ -82,6 +82,12 @@ class NavConfig:
             fallen body plan around it (:mod:`navzoo.envs.fallen`); on by default since 2026-12-06 (off
             before: people walked into bodies lying on the floor and fell over them, in cascades). Kinematic
             pedestrians never fall.
+        human_fallen_wait: with ``human_fallen_obstacles``: a standing physics pedestrian whose path passes a
+            fallen body and who finds no way round it (bodies across a corridor or in a door) stops and waits,
+            its target trajectory standing still, until a later stamp (a new fall, or a body that moved) opens a
+            way; a new goal with no path from where the person stands is drawn again (up to
+            ``FALLEN_GOAL_TRIES`` times) before it waits. Off (the default): such a person keeps its old path and
+            walks on into the bodies (docs/crowd_log.md, "People walk into the pile").
         human_door_entries: physics (AMP) pedestrians' A* paths cross each door on its axis, from an
             entry point 0.7 m before it to an exit point 0.7 m after it (:mod:`navzoo.envs.doors`);
             off by default.
@@ -242,6 +248,7 @@ class NavConfig:
     human_body_contacts: bool = True
     human_contact_penalty: bool = True
     human_fallen_obstacles: bool = True
+    human_fallen_wait: bool = False
     human_door_entries: bool = False
     human_replan_blocked: Literal["amp", "all", "off"] = "off"
     human_speed: tuple[float, float] = (1.0, 1.4)
@@ -362,6 +369,8 @@ class NavConfig:
             raise bad("human_contact_penalty", "a bool")
         if not isinstance(self.human_fallen_obstacles, bool):
             raise bad("human_fallen_obstacles", "a bool")
+        if not isinstance(self.human_fallen_wait, bool):
+            raise bad("human_fallen_wait", "a bool")
         if not isinstance(self.human_door_entries, bool):
             raise bad("human_door_entries", "a bool")
         if not _is_int(self.scan_rays) or self.scan_rays < 0:

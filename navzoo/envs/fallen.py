@@ -8,8 +8,9 @@ copy of the occupancy grid, plans the pedestrians' paths on that grid from then 
 right away for everyone whose remaining path passes the body. A body is found fallen while it still
 slides and rolls, and comes to rest a median 0.3-0.4 m (up to 1.9 m) further on in crowd runs, so the env stamps the fallen bodies
 again (on a fresh copy of the bare grid) whenever one has moved more than ``FALLEN_RESTAMP_M`` from
-where it was stamped. Where no path avoids the body (a single door it lies in), a person keeps its
-old path and waits, as before.
+where it was stamped. Where no path avoids the bodies (a single door one lies in, or bodies across a
+corridor), a person keeps its old path and walks on into them; with ``NavConfig(human_fallen_wait=True)``
+it stands and waits instead, until a later stamp opens a way.
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ FALLEN_BODY_RADIUS = 0.15  # m: half the thickness of a lying body, around its r
 # m: a lying body whose root or a key body has moved this far from where it was stamped is stamped again (a body is
 # found fallen while it still slides and rolls)
 FALLEN_RESTAMP_M = 0.2
+# NavConfig.human_fallen_wait: new goals drawn for a person before it waits, when fallen bodies cut every way there
+FALLEN_GOAL_TRIES = 5
 _SAMPLE_M = 0.05
 
 

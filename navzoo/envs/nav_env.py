@@ -26,7 +26,7 @@ from navzoo.envs.amp_humans import WAYPOINT_LOOKAHEAD, AmpHumans, advance_waypoi
 from navzoo.envs.amp_humans import YIELD_HOLD_S as AMP_YIELD_HOLD_S
 from navzoo.envs.config import NavConfig
 from navzoo.envs.doors import door_entries, path_doors
-from navzoo.envs.fallen import FALLEN_BODY_RADIUS, FALLEN_RESTAMP_M, path_passes
+from navzoo.envs.fallen import FALLEN_BODY_RADIUS, FALLEN_GOAL_TRIES, FALLEN_RESTAMP_M, path_passes
 from navzoo.envs.fallen import footprint_points as fallen_footprint_points
 from navzoo.envs.fallen import stamp as stamp_fallen
 from navzoo.envs.rewards import TERMS, RewardParams, navigation_reward
@@ -357,6 +357,8 @@ class NavEnv(ParallelEnv):
         self._fallen_points = np.zeros((0, 2))
         self._fallen_stamped: dict[int, np.ndarray] = {}  # pedestrian -> its root and key bodies (K+1, 2) when stamped
         self._fallen_replanned = np.zeros(H, dtype=bool)  # who got a path round a fallen body since the last step
+        # human_fallen_wait: who stands and waits because fallen bodies block every way to its goal
+        self.human_waiting_fallen = np.zeros(H, dtype=bool)
         self._wp_hidden = np.zeros(N)  # seconds each agent's current waypoint has been out of its sight
         self._last_replan = np.full(N, -np.inf)  # sim time of each pedestrian's last blocked-path replan
         # Replayed people walk their recorded track: their "path" is the track's last point.
@@ -993,16 +995,24 @@ class NavEnv(ParallelEnv):
         self._fallen_grid = stamp_fallen(self.grid, pts)
         self._fallen_planners = {}
         changed = np.zeros(self.n_humans, dtype=bool)
+        wait = self.config.human_fallen_wait
+        self.human_waiting_fallen &= ~self.human_fallen
         for j in np.flatnonzero(~self.human_fallen & ~self.arrived[R:]):
             i = R + j
             near = float(self.radius[i]) + FALLEN_BODY_RADIUS + 0.1
-            if not path_passes(self.paths[i][self.wp_index[i]:], self.pos[i], pts, near):
+            if not self.human_waiting_fallen[j] and not path_passes(self.paths[i][self.wp_index[i]:], self.pos[i],
+                                                                    pts, near):
                 continue
             path = self._plan(i, self.pos[i], self.goal[i], fallback=False)
-            if path is not None:  # else no way around (it lies in the only door): keep the path and wait
+            if path is not None:  # a way round, or a waiting person's way is open again
                 self.paths[i] = path
                 self.wp_index[i] = 0
                 changed[j] = True
+                self.human_waiting_fallen[j] = False
+            elif wait and not self.human_waiting_fallen[j]:  # no way round: stand and wait (targets stand still)
+                self.human_waiting_fallen[j] = True
+                changed[j] = True
+            # else (human_fallen_wait off): keep the old path, which walks on into the bodies
         return changed
 
     def _replan_blocked_humans(self, dt: float) -> np.ndarray:
@@ -1037,6 +1047,7 @@ class NavEnv(ParallelEnv):
                 self.wp_index[i] = 0
                 self._wp_hidden[i] = 0.0
                 changed[j] = True
+                self.human_waiting_fallen[j] = False
         return changed
 
     def _retarget_humans(self) -> np.ndarray:
@@ -1056,8 +1067,18 @@ class NavEnv(ParallelEnv):
                     continue
                 goal = self._samplers["human"].sample_goal(self.rng_tasks, self.pos[i], "human",
                                                             min_goal_dist=self.config.min_goal_distance)
+                path = None
+                if self.config.human_fallen_wait and self._fallen_grid is not None and not self.human_fallen[j]:
+                    # fallen bodies may cut the way to the goal: draw again, and wait if none can be reached
+                    for _ in range(FALLEN_GOAL_TRIES):
+                        path = self._plan(i, self.pos[i], goal, fallback=False)
+                        if path is not None:
+                            break
+                        goal = self._samplers["human"].sample_goal(self.rng_tasks, self.pos[i], "human",
+                                                                    min_goal_dist=self.config.min_goal_distance)
+                    self.human_waiting_fallen[j] = path is None
                 self.goal[i] = goal
-                self.paths[i] = self._plan(i, self.pos[i], goal)
+                self.paths[i] = path if path is not None else self._plan(i, self.pos[i], goal)
                 self.wp_index[i] = 0
                 self.d_goal[i] = float(np.linalg.norm(goal - self.pos[i]))
         return reached
