@@ -1,0 +1,92 @@
+"""Trace the planning round fallen bodies in one following run (docs/crowd_log.md, "People walk into the pile").
+
+Runs ``scripts/amp_target_ablation.py`` in this process (its worker pool replaced by a plain loop, so the env can be
+watched) and writes one JSON line per event to ``--trace``:
+
+- ``stamp``: the fallen bodies were stamped into the pedestrians' planning grid (a new fall, or a body that moved):
+  who lies (``lying``), who got a path round them (``replanned``), and who is left with a path through them and no way
+  round (``no_way_round``, with their positions ``pos``);
+- ``straight_line``: a pedestrian got a new goal to which no path leads on that grid, and walks a straight line.
+
+The run's row goes to ``--out`` as usual; it repeats the row of the same run without the trace trip for trip.
+
+    python scripts/trace_fallen_blocking.py --trace corridor_s3.events --crowd diffusion --scenes corridor --seeds 3 \\
+        --seconds 200 --workers 1 --configs "kdtfr:0.1:0.1:4:2.0:human_door_turns+human_fallen_obstacles::::::::::$S" \\
+        --out corridor_s3.jsonl
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import runpy
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import navzoo.envs.nav_env as ne
+
+
+def _trace(out: Path) -> None:
+    def log(event: dict) -> None:
+        with out.open("a") as f:
+            f.write(json.dumps(event) + "\n")
+
+    avoid, plan = ne.NavEnv._avoid_fallen, ne.NavEnv._plan
+
+    def traced_avoid(self):
+        changed = avoid(self)
+        R, pts = self.n_robots, self._fallen_points
+        stuck = [int(j) for j in np.flatnonzero(~self.human_fallen & ~self.arrived[R:] & ~changed)
+                 if ne.path_passes(self.paths[R + j][self.wp_index[R + j]:], self.pos[R + j], pts,
+                                   float(self.radius[R + j]) + ne.FALLEN_BODY_RADIUS + 0.1)]
+        log({"t": round(self.sim_time, 2), "kind": "stamp", "lying": sorted(int(k) for k in self._fallen_stamped),
+             "replanned": [int(j) for j in np.flatnonzero(changed)], "no_way_round": stuck,
+             "pos": {j: [round(float(v), 2) for v in self.pos[R + j]] for j in stuck}})
+        return changed
+
+    def traced_plan(self, i, start, goal, fallback=True):
+        path = plan(self, i, start, goal, fallback)
+        if fallback and self._fallen_grid is not None and i >= self.n_robots and len(path) == 1 \
+                and np.array_equal(path[0], np.asarray(goal, dtype=np.float64)):
+            log({"t": round(self.sim_time, 2), "kind": "straight_line", "who": int(i - self.n_robots)})
+        return path
+
+    ne.NavEnv._avoid_fallen, ne.NavEnv._plan = traced_avoid, traced_plan
+
+
+class _InProcess:
+    """Stands in for ``multiprocessing.get_context(...)``: its Pool maps in this process."""
+
+    class Pool:
+        def __init__(self, *args, **kwargs):
+            pass
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def imap_unordered(self, fn, jobs):
+            return map(fn, jobs)
+
+
+def main() -> int:
+    argv = sys.argv[1:]
+    if "--trace" not in argv or argv.index("--trace") + 1 >= len(argv):
+        print("usage: trace_fallen_blocking.py --trace EVENTS.jsonl ARGS OF amp_target_ablation.py", file=sys.stderr)
+        return 2
+    k = argv.index("--trace")
+    out = Path(argv[k + 1])
+    del argv[k:k + 2]
+    _trace(out)
+    multiprocessing.get_context = lambda *a, **kw: _InProcess()
+    sys.argv = [str(Path(__file__).with_name("amp_target_ablation.py")), *argv]
+    runpy.run_path(sys.argv[0], run_name="__main__")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
