@@ -51,6 +51,7 @@ import json
 import multiprocessing as mp
 import sys
 import typing
+from contextlib import nullcontext
 from pathlib import Path
 
 
@@ -394,7 +395,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenes", default=None,
                     help="comma-separated: some of the 8 scenes, SCENE:N for any library scene with N people, or "
                          "'heldout' (default: the 8)")
-    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--workers", type=int, default=2,
+                    help="runs at once, each in a fresh process (default 2); 0 runs them one after another in this "
+                         "process, where a patched env is seen (scripts/trace_fallen_blocking.py)")
     ap.add_argument("--crowd", default="sfm", choices=("sfm", "orca", "diffusion"),
                     help="crowd model that makes the target trajectories (default sfm)")
     ap.add_argument("--bodies", default="amp", choices=("amp", "kinematic"),
@@ -421,6 +424,8 @@ def main(argv: list[str] | None = None) -> int:
         except (ValueError, OSError) as e:
             ap.error(str(e))
         return 0
+    if args.workers < 0:
+        ap.error(f"--workers must be 0 (in this process) or more, got {args.workers}")
     configs = [parse_config(c) for c in args.configs.split(",")]
     seeds = [int(s) for s in args.seeds.split(",")]
     out = Path(args.out)
@@ -447,8 +452,9 @@ def main(argv: list[str] | None = None) -> int:
             if (c["name"], args.crowd, settings_key, seed, args.bodies, s) not in done]
     jobs.sort(key=lambda j: -j[2])  # crowded scenes first: they take longest
     print(f"{len(jobs)} runs ({len(rows)} rows already in {out})", file=sys.stderr, flush=True)
-    with mp.get_context("spawn").Pool(args.workers, maxtasksperchild=1) as pool, out.open("a") as f:
-        for row in pool.imap_unordered(_run, jobs):
+    pool = mp.get_context("spawn").Pool(args.workers, maxtasksperchild=1) if args.workers else nullcontext()
+    with pool, out.open("a") as f:
+        for row in (pool.imap_unordered(_run, jobs) if args.workers else map(_run, jobs)):
             f.write(json.dumps(row) + "\n")
             f.flush()
     print(summary(str(out)))

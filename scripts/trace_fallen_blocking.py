@@ -1,7 +1,7 @@
 """Trace the planning round fallen bodies in one following run (docs/crowd_log.md, "People walk into the pile").
 
-Runs ``scripts/amp_target_ablation.py`` in this process (its worker pool replaced by a plain loop, so the env can be
-watched) and writes one JSON line per event to ``--trace``:
+Runs ``scripts/amp_target_ablation.py`` with ``--workers 0`` (its runs in this process, so the patched env is the one
+that runs) and writes one JSON line per event to ``--trace``:
 
 - ``stamp``: the fallen bodies were stamped into the pedestrians' planning grid (a new fall, or a body that moved):
   who lies (``lying``), who got a path round them (``replanned``), and who is left with a path through them and no way
@@ -11,14 +11,13 @@ watched) and writes one JSON line per event to ``--trace``:
 The run's row goes to ``--out`` as usual; it repeats the row of the same run without the trace trip for trip.
 
     python scripts/trace_fallen_blocking.py --trace corridor_s3.events --crowd diffusion --scenes corridor --seeds 3 \\
-        --seconds 200 --workers 1 --configs "kdtfr:0.1:0.1:4:2.0:human_door_turns+human_fallen_obstacles::::::::::$S" \\
+        --seconds 200 --configs "kdtfr:0.1:0.1:4:2.0:human_door_turns+human_fallen_obstacles::::::::::$S" \\
         --out corridor_s3.jsonl
 """
 
 from __future__ import annotations
 
 import json
-import multiprocessing
 import runpy
 import sys
 from pathlib import Path
@@ -37,10 +36,9 @@ def _trace(out: Path) -> None:
 
     def traced_avoid(self):
         changed = avoid(self)
-        R, pts = self.n_robots, self._fallen_points
+        R = self.n_robots
         stuck = [int(j) for j in np.flatnonzero(~self.human_fallen & ~self.arrived[R:] & ~changed)
-                 if ne.path_passes(self.paths[R + j][self.wp_index[R + j]:], self.pos[R + j], pts,
-                                   float(self.radius[R + j]) + ne.FALLEN_BODY_RADIUS + 0.1)]
+                 if self._path_passes_fallen(R + j)]
         log({"t": round(self.sim_time, 2), "kind": "stamp", "lying": sorted(int(k) for k in self._fallen_stamped),
              "replanned": [int(j) for j in np.flatnonzero(changed)], "no_way_round": stuck,
              "pos": {j: [round(float(v), 2) for v in self.pos[R + j]] for j in stuck}})
@@ -56,23 +54,6 @@ def _trace(out: Path) -> None:
     ne.NavEnv._avoid_fallen, ne.NavEnv._plan = traced_avoid, traced_plan
 
 
-class _InProcess:
-    """Stands in for ``multiprocessing.get_context(...)``: its Pool maps in this process."""
-
-    class Pool:
-        def __init__(self, *args, **kwargs):
-            pass
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            return False
-
-        def imap_unordered(self, fn, jobs):
-            return map(fn, jobs)
-
-
 def main() -> int:
     argv = sys.argv[1:]
     if "--trace" not in argv or argv.index("--trace") + 1 >= len(argv):
@@ -82,8 +63,7 @@ def main() -> int:
     out = Path(argv[k + 1])
     del argv[k:k + 2]
     _trace(out)
-    multiprocessing.get_context = lambda *a, **kw: _InProcess()
-    sys.argv = [str(Path(__file__).with_name("amp_target_ablation.py")), *argv]
+    sys.argv = [str(Path(__file__).with_name("amp_target_ablation.py")), *argv, "--workers", "0"]
     runpy.run_path(sys.argv[0], run_name="__main__")
     return 0
 

@@ -982,6 +982,12 @@ class NavEnv(ParallelEnv):
         return any(float(np.max(np.linalg.norm(now[j] - was, axis=1))) > FALLEN_RESTAMP_M
                    for j, was in self._fallen_stamped.items())
 
+    def _path_passes_fallen(self, i: int) -> bool:
+        """Whether agent ``i``'s remaining path comes near a stamped fallen body (within its radius, the body's
+        half thickness and 0.1 m)."""
+        near = float(self.radius[i]) + FALLEN_BODY_RADIUS + 0.1
+        return path_passes(self.paths[i][self.wp_index[i]:], self.pos[i], self._fallen_points, near)
+
     def _avoid_fallen(self) -> np.ndarray:
         """Stamp the bodies of the fallen pedestrians, where they lie now, into the pedestrians' planning grid
         (a fresh copy of the bare grid) and plan again for the standing ones whose path passes them; returns
@@ -999,9 +1005,7 @@ class NavEnv(ParallelEnv):
         self.human_waiting_fallen &= ~self.human_fallen
         for j in np.flatnonzero(~self.human_fallen & ~self.arrived[R:]):
             i = R + j
-            near = float(self.radius[i]) + FALLEN_BODY_RADIUS + 0.1
-            if not self.human_waiting_fallen[j] and not path_passes(self.paths[i][self.wp_index[i]:], self.pos[i],
-                                                                    pts, near):
+            if not self.human_waiting_fallen[j] and not self._path_passes_fallen(i):
                 continue
             path = self._plan(i, self.pos[i], self.goal[i], fallback=False)
             if path is not None:  # a way round, or a waiting person's way is open again
