@@ -112,11 +112,11 @@ class NavConfig:
         dt: control period (s).
         physics_substeps: PyBullet steps per control step (``human_model="amp"``: fixed by the
             humanoids' 120 Hz physics, this field is ignored).
-        amp_replan_seconds: ``human_model="amp"``: period of the target trajectory rollouts (s). 1.0 measured
-            ahead or level in every comparison so far (following protocol and held out, both target generators, AMD
-            and Intel CPUs; path error -25 %, up to 1.6 times the run time with diffusion targets); not yet the
-            default until the Intel seeds 6-7 are in (docs/crowd_log.md, "Replanning every second on the Intel
-            device ...").
+        amp_replan_seconds: ``human_model="amp"``: period of the target trajectory rollouts (s). 1.0 cuts path
+            error by a quarter and agent contacts by a fifth in every pool measured, but success is level on the
+            headline pool (Intel seeds 0-7: -0.6 +- 1.1 / +0.6 +- 1.1 points per limit with diffusion / social-force
+            targets) and diffusion targets cost up to 1.6 times the run time; so 2.0 stays the default
+            (docs/crowd_log.md, "Replanning every second on all eight Intel seeds").
         amp_progress_reward: ``human_model="amp"``: weight of a progress term added to the pedestrians'
             task reward: the body's speed toward the next waypoint of its path, as a share of its
             preferred speed, clipped to [-1, 1] (0 for fallen or arrived people;
