@@ -1,7 +1,7 @@
 """What tips the physics pedestrians over in the following runs, and do falls come in cascades?
 
     python scripts/fall_causes.py RUNS.jsonl [RUNS.jsonl ...] [--by-scene] [--scenes protocol|heldout|S,S] [--counts]
-        [--within S] [--near M] [--json]
+        [--within S] [--near M] [--json] [--paired-cpus]
 
 Reads the rows of ``scripts/amp_target_ablation.py`` (or any rows of ``navzoo.benchmark.pedestrians.follow_scene``)
 that carry ``fall_events`` (:class:`navzoo.benchmark.pedestrians.FallLog`, since 2026-12-06; older rows are
@@ -19,6 +19,11 @@ skipped and counted, or with ``--counts`` taken for their fall counts alone). Pe
   the FallLog records it);
 - successes per run in runs without falls and in runs with ``CASCADE_RUN`` falls or more: a fallen person makes no
   more trips, so a cascade costs a run much of its successes.
+
+``--paired-cpus`` instead compares two kinds of CPU (a run repeats trip for trip only on one kind): per configuration,
+the runs (scene, people, seed) that ran on both, their falls on each, and a paired sign-flip test of the difference
+(two-sided, ``SIGN_FLIP_DRAWS`` random sign patterns from a fixed seed): do falls differ between the CPUs more than
+runs that differ trip for trip do by chance?
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ import numpy as np
 
 CASCADE_RUN = 3
 KNOCKED_S = 3.0  # a fall this soon after the one before, tipped by that body: knocked over as it fell
+SIGN_FLIP_DRAWS = 200_000
 CAUSES = ("fallen body", "person", "wall", "none")
 
 
@@ -53,12 +59,42 @@ def read(paths: list[str], counts: bool = False) -> tuple[list[dict], int]:
             if "fall_events" not in r and not counts:
                 skipped += 1
                 continue
-            key = (r.get("config"), r.get("crowd"), r["scene"], r.get("pedestrians"), r.get("seed"))
+            key = (r.get("config"), r.get("crowd"), r["scene"], r.get("pedestrians"), r.get("seed"), _cpu(r))
             if key in seen:
                 continue
             seen.add(key)
             rows.append(r)
     return rows, skipped
+
+
+def _cpu(row: dict) -> str:
+    """The kind of CPU a row ran on ("Intel", "AMD"; "?" when the row does not say)."""
+    return str(row.get("cpu", "?")).split("(")[0].split()[0]
+
+
+def paired_cpus(rows: list[dict], draws: int = SIGN_FLIP_DRAWS, seed: int = 0) -> list[dict]:
+    """Per configuration run on exactly two kinds of CPU: the falls of the runs that ran on both, and the two-sided
+    sign-flip p-value of their summed paired difference (the share of random sign patterns whose sum is as far from 0)."""
+    by_config: dict[tuple, dict[str, dict[tuple, int]]] = defaultdict(lambda: defaultdict(dict))
+    for r in rows:
+        falls = len(r["fall_events"]) if "fall_events" in r else int(r["fall"])
+        by_config[(r.get("config", "?"), r.get("crowd", "sfm"))][_cpu(r)][(r["scene"], r.get("pedestrians"),
+                                                                           r.get("seed"))] = falls
+    out = []
+    for (config, crowd), cpus in sorted(by_config.items()):
+        if len(cpus) != 2:
+            continue
+        (ca, a), (cb, b) = sorted(cpus.items())
+        keys = sorted(set(a) & set(b), key=str)
+        if not keys:
+            continue
+        d = np.array([a[k] - b[k] for k in keys])
+        signs = np.random.default_rng(seed).choice([-1, 1], size=(draws, len(d)))
+        p = float(np.mean(np.abs(signs @ d) >= abs(d.sum()))) if d.any() else 1.0
+        out.append({"config": config, "crowd": crowd, "cpus": [ca, cb], "runs": len(keys),
+                    "falls": [int(sum(a[k] for k in keys)), int(sum(b[k] for k in keys))],
+                    "runs_more_falls": [int((d > 0).sum()), int((d < 0).sum())], "p_sign_flip": round(p, 4)})
+    return out
 
 
 def summarize(rows: list[dict], within: float, near: float) -> dict:
@@ -107,6 +143,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="only these scenes ('protocol' for the 8 of the following protocol, 'heldout' for the 10)")
     ap.add_argument("--counts", action="store_true",
                     help="also rows without fall events (older runs): their fall counts, no causes")
+    ap.add_argument("--paired-cpus", action="store_true",
+                    help="compare the falls of the same runs on two kinds of CPU (paired sign-flip test)")
     a = ap.parse_args(argv)
     from navzoo.benchmark.pedestrians import FALL_CAUSE_S
 
@@ -129,10 +167,19 @@ def main(argv: list[str] | None = None) -> int:
         print(f"fall_causes: {skipped} rows without fall_events (runs before 2026-12-06) left out", file=sys.stderr)
     if not rows:
         ap.error("no rows with fall_events in these files (--counts takes the fall counts of older rows)")
+    if a.paired_cpus:
+        pairs = paired_cpus(rows)
+        if not pairs:
+            ap.error("no configuration has the same runs on two kinds of CPU in these files")
+        for x in pairs:
+            print(json.dumps(x) if a.json else
+                  f"{x['config']} ({x['crowd']}): {x['runs']} runs on both; falls {x['cpus'][0]} {x['falls'][0]}, "
+                  f"{x['cpus'][1]} {x['falls'][1]}; more falls on {x['cpus'][0]} in {x['runs_more_falls'][0]} runs, "
+                  f"on {x['cpus'][1]} in {x['runs_more_falls'][1]}; paired sign-flip p = {x['p_sign_flip']}")
+        return 0
     groups: dict[tuple, list[dict]] = defaultdict(list)
-    for r in rows:
-        cpu = str(r.get("cpu", "?")).split("(")[0].split()[0]  # rows of another kind of CPU are other runs: kept apart
-        groups[(r.get("config", "?"), r.get("crowd", "sfm"), cpu, r["scene"] if a.by_scene else "all")].append(r)
+    for r in rows:  # rows of another kind of CPU are other runs: kept apart
+        groups[(r.get("config", "?"), r.get("crowd", "sfm"), _cpu(r), r["scene"] if a.by_scene else "all")].append(r)
     if not a.json:
         print(f"| configuration | scene | runs | falls | in runs with {CASCADE_RUN}+ falls | "
               + " | ".join(f"cause: {c}" for c in CAUSES)

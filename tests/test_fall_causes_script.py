@@ -65,3 +65,32 @@ def test_bad_input_is_named(tmp_path, capsys):
     with pytest.raises(SystemExit):
         fc.main([str(g)])
     assert "no rows with fall_events" in capsys.readouterr().err
+
+
+def test_paired_cpus(tmp_path, capsys):
+    def on(cpu, seed, scene, n, config="kdt"):
+        return _row(seed, scene, 50, [_event(10 + k) for k in range(n)], config) | {"cpu": f"{cpu} Model (x)"}
+
+    # the same runs on both kinds of CPU (read apart, not taken for one run twice), one run only on Intel, and a
+    # configuration run on one kind only (no pair)
+    rows = [on("Intel", 0, "lobby", 3), on("AMD", 0, "lobby", 0), on("Intel", 1, "lobby", 2), on("AMD", 1, "lobby", 0),
+            on("Intel", 2, "corridor", 1), on("AMD", 2, "corridor", 1), on("Intel", 3, "corridor", 5),
+            on("Intel", 0, "lobby", 1, config="kdtx")]
+    f = tmp_path / "runs.jsonl"
+    f.write_text("\n".join(json.dumps(r) for r in rows) + "\n")
+    read, _ = fc.read([str(f)])
+    assert len(read) == 8
+    (x,) = fc.paired_cpus(read, draws=20_000)
+    assert x["config"] == "kdt" and x["cpus"] == ["AMD", "Intel"] and x["runs"] == 3
+    assert x["falls"] == [1, 6] and x["runs_more_falls"] == [0, 2]
+    # three paired runs, differences (-3, -2, 0): |sum| >= 5 for 2 of the 4 sign patterns of the nonzero pair
+    assert x["p_sign_flip"] == pytest.approx(0.5, abs=0.02)
+    same = [r | {"fall_events": [], "fall": 0} for r in read if r["config"] == "kdt"]
+    assert fc.paired_cpus(same)[0]["p_sign_flip"] == 1.0
+    assert fc.main([str(f), "--paired-cpus", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["falls"] == [1, 6]
+    g = tmp_path / "one_cpu.jsonl"
+    g.write_text(json.dumps(rows[0]) + "\n")
+    with pytest.raises(SystemExit):
+        fc.main([str(g), "--paired-cpus"])
+    assert "two kinds of CPU" in capsys.readouterr().err
