@@ -183,13 +183,14 @@ def test_others_plan_around_a_fallen_body_when_asked(obstacles):
     assert env.human_fallen[0] and not env.human_fallen[1]
     if not obstacles:
         np.testing.assert_array_equal(env.paths[1], before)
-        assert env._fallen_grid is None
+        assert env._fallen_grid is None and env.pedestrian_grid is env.grid
     else:
         body = env._fallen_points
         assert len(body) and path_passes(before, env.pos[1], body, 0.55)  # the old path ran through it
         assert not path_passes(env.paths[1][env.wp_index[1]:], env.pos[1], body, 0.55)
         assert np.allclose(env.paths[1][-1], [10.0, 5.0])
         assert not env._fallen_grid.is_free(body[:1])[0] and env.grid.is_free(body[:1])[0]
+        assert env.pedestrian_grid is env._fallen_grid
         # its target trajectory was rolled out again along the new path
         assert env.amp.plan_t.max() == env.amp.t
     env.close()

@@ -108,12 +108,12 @@ def test_fallen_in_map_gives_the_diffusion_crowd_the_grid_with_the_lying_bodies(
 
     crowd = SimpleNamespace(fallen_in_map=False, weights=(1.0, 10.0, 10.0))
     bare, stamped = object(), object()
-    env = SimpleNamespace(grid=bare, _fallen_grid=None)
+    env = SimpleNamespace(grid=bare, pedestrian_grid=bare)  # nobody lies on the floor yet (NavEnv.pedestrian_grid)
     assert DiffusionCrowd._map_grid(crowd, env) is bare
-    env._fallen_grid = stamped
+    env.pedestrian_grid = stamped
     assert DiffusionCrowd._map_grid(crowd, env) is bare  # off: the bare scene
     mr.apply_diffusion_settings(crowd, {"fallen_in_map": 1.0})
     assert crowd.fallen_in_map is True
     assert DiffusionCrowd._map_grid(crowd, env) is stamped
-    env._fallen_grid = None  # nobody lies on the floor yet
+    env.pedestrian_grid = bare
     assert DiffusionCrowd._map_grid(crowd, env) is bare

@@ -1172,6 +1172,13 @@ class NavEnv(ParallelEnv):
         return self._crowd_sfm[1]
 
     @property
+    def pedestrian_grid(self) -> OccupancyGrid:
+        """The occupancy grid the pedestrians plan on: the scene grid with the fallen bodies stamped where they lie
+        once any have fallen under ``human_fallen_obstacles`` (:meth:`_avoid_fallen`), else the scene grid
+        (``grid``). Read-only: a new fall or a moved body replaces it."""
+        return self._fallen_grid if self._fallen_grid is not None else self.grid
+
+    @property
     def present(self) -> np.ndarray:
         """(N,) bool: agents in the world (robots always; pedestrians unless absent, see ``human_active``)."""
         return np.concatenate([np.ones(self.n_robots, dtype=bool), self.human_active])

@@ -500,8 +500,7 @@ class DiffusionCrowd:
 
     def _map_grid(self, env: NavEnv) -> OccupancyGrid:
         """The occupancy grid of the model's map input and the map guidance (``fallen_in_map``)."""
-        stamped = getattr(env, "_fallen_grid", None)
-        return stamped if self.fallen_in_map and stamped is not None else env.grid
+        return env.pedestrian_grid if self.fallen_in_map else env.grid
 
     def plan_now(self, env: NavEnv, who: np.ndarray | None = None) -> np.ndarray:
         """Plan pedestrians now: all of them, or those of ``who`` (indices among the pedestrians, 0..n_humans-1).
