@@ -69,7 +69,7 @@ def read(paths: list[str], counts: bool = False) -> tuple[list[dict], int]:
 
 def _cpu(row: dict) -> str:
     """The kind of CPU a row ran on ("Intel", "AMD"; "?" when the row does not say)."""
-    return str(row.get("cpu", "?")).split("(")[0].split()[0]
+    return (str(row.get("cpu") or "?").split("(")[0].split() or ["?"])[0]
 
 
 def paired_cpus(rows: list[dict], draws: int = SIGN_FLIP_DRAWS, seed: int = 0) -> list[dict]:
