@@ -72,14 +72,18 @@ def _cpu(row: dict) -> str:
     return (str(row.get("cpu") or "?").split("(")[0].split() or ["?"])[0]
 
 
+def _falls(row: dict) -> int:
+    """A run's falls: its fall events, or its ``fall`` count for an older row read with ``--counts``."""
+    return len(row["fall_events"]) if "fall_events" in row else int(row["fall"])
+
+
 def paired_cpus(rows: list[dict], draws: int = SIGN_FLIP_DRAWS, seed: int = 0) -> list[dict]:
     """Per configuration run on exactly two kinds of CPU: the falls of the runs that ran on both, and the two-sided
     sign-flip p-value of their summed paired difference (the share of random sign patterns whose sum is as far from 0)."""
     by_config: dict[tuple, dict[str, dict[tuple, int]]] = defaultdict(lambda: defaultdict(dict))
     for r in rows:
-        falls = len(r["fall_events"]) if "fall_events" in r else int(r["fall"])
         by_config[(r.get("config", "?"), r.get("crowd", "sfm"))][_cpu(r)][(r["scene"], r.get("pedestrians"),
-                                                                           r.get("seed"))] = falls
+                                                                           r.get("seed"))] = _falls(r)
     out = []
     for (config, crowd), cpus in sorted(by_config.items()):
         if len(cpus) != 2:
@@ -100,7 +104,7 @@ def paired_cpus(rows: list[dict], draws: int = SIGN_FLIP_DRAWS, seed: int = 0) -
 def summarize(rows: list[dict], within: float, near: float) -> dict:
     from navzoo.benchmark.pedestrians import fall_cause
 
-    falls = [len(r["fall_events"]) if "fall_events" in r else int(r["fall"]) for r in rows]
+    falls = [_falls(r) for r in rows]
     events = [e for r in rows for e in r.get("fall_events", [])]
     causes = dict.fromkeys(CAUSES, 0)
     for e in events:
