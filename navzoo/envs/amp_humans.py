@@ -154,6 +154,12 @@ STALL_PACE = 0.6
 STALL_MIN_PLAN_SPEED = 0.05  # m/s
 STALL_PLAN_S = 2.0  # s
 STALL_MAX_WARP = 4.0
+# Diffusion targets hand over to the A* path near narrow doors: within DIFFUSION_DOOR_REACH (m) of a stretch of a
+# person's A* path too narrow for the full wall margin (the doors under about 1.0 m of SFM_SIDE_NARROW_REACH), the
+# target rollout heads for the person's next A* waypoint at its preferred speed, as social-force targets do, instead
+# of along the sampled plan (which, for a body that has stood, starts slowly). Door turns shape it there as they shape
+# social-force targets. 0 = off.
+DIFFUSION_DOOR_REACH = 0.0
 # Not within STALL_NARROW_REACH (m) of a stretch of the person's A* path too narrow for the full wall margin (the
 # graded wall margin's narrow points: doors under about 1.0 m); 0 = everywhere.
 STALL_NARROW_REACH = 0.0
@@ -680,6 +686,10 @@ class AmpHumans:
                     others = np.concatenate([pos, r_pos]) if len(r_pos) else pos
                     warp = np.where(blocked_ahead(pos[stalled], later - pos[stalled], others, STALL_CLEAR_M, STALL_CLEAR_DEG),
                                     1.0, warp)
+        door_astar = diffusion is not None and DIFFUSION_DOOR_REACH > 0.0
+        if door_astar:  # the narrow doors of each person's A* path, where its rollout follows the path instead
+            astar_doors = [pts for pts, _ in self.narrow_passages(paths, env.radius[h], WALL_PLAN_MARGIN)]
+
         def social_force(pos, vel, pref, o_pos, wall_rad):  # one social-force step of the rollout
             def step(params):
                 return social_force_velocities(pos, vel, pref, sf_rad, vmax, PLAN_DT, params, env.segments,
@@ -710,6 +720,14 @@ class AmpHumans:
                     fast = (ahead - pos[stalled]) / look
                     speed = np.linalg.norm(fast, axis=1, keepdims=True)
                     pref[stalled] = np.where(speed > cap[stalled], fast / np.maximum(speed, 1e-9) * cap[stalled], fast)
+                if door_astar:
+                    near = np.flatnonzero(near_narrow(astar_doors, pos, DIFFUSION_DOOR_REACH) & (v_pref > 0.0))
+                    if near.size:
+                        for j in near:
+                            wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD,
+                                                           visible[j])
+                        wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in near])
+                        pref[near] = preferred_velocity(pos[near], wp, goal[near], v_pref[near])
             else:
                 for j in range(self.n):  # advance along the A* path, as the env does for physics pedestrians
                     wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD,
