@@ -145,3 +145,50 @@ def test_slow_target_probe_pools_files_per_speed_and_bearing(tmp_path):
     assert rows[2] == {"speed": 0.2, "bearing_deg": None, "runs": 4, "mean_along_m": 0.9, "reached_1m": 2, "fell": 1}
     with pytest.raises(SystemExit, match="--summary"):
         probe.main(["--summary", str(tmp_path / "missing.json")])
+
+
+def test_diffusion_targets_follow_the_astar_path_near_narrow_doors(monkeypatch):
+    """With ``DIFFUSION_DOOR_REACH`` (off by default) a person within that reach of a narrow door of its A* path gets a
+    target rollout toward its next A* waypoint at its preferred speed instead of along its diffusion plan; beyond the
+    reach, and with the option off, the plan's own pace stays."""
+    from navzoo.envs.nav_env import NavEnv
+
+    assert amp_humans.DIFFUSION_DOOR_REACH == 0.0
+    env = NavEnv(scene="doorway", n_robots=0, n_humans=4, human_model="amp", crowd_model="diffusion", dt=1 / 30,
+                 time_limit=10.0)
+    env.reset(seed=0)
+    amp, crowd = env.amp, env.diffusion
+    h = np.flatnonzero(~env.is_robot)
+    pos = amp.planar()[0]
+    doors = [pts for pts, _ in amp.narrow_passages([env.paths[i] for i in h], env.radius[h], amp_humans.WALL_PLAN_MARGIN)]
+    assert all(len(pts) for pts in doors)  # every path of the doorway passes its 1.0 m door
+    door_m = np.array([np.linalg.norm(pts - p, axis=1).min() for pts, p in zip(doors, pos, strict=True)])
+    # slow plans: 0.1 m/s straight away from each body's goal, for every replan of this test
+    away = pos - env.goal[h]
+    away /= np.linalg.norm(away, axis=1, keepdims=True)
+    straight_plans(monkeypatch, crowd, pos, 0.1 * away)
+
+    def rollout(reach: float) -> np.ndarray:
+        monkeypatch.setattr(amp_humans, "DIFFUSION_DOOR_REACH", reach)
+        amp.plan_all()
+        return amp.paths.copy()
+
+    off = rollout(0.0)
+    everywhere = rollout(100.0)
+    # off: every target keeps the plan's pace and direction (0.2 m in 2 s, away from the goal)
+    step_off = off[:, 60] - pos
+    assert (np.linalg.norm(step_off, axis=1) < 0.35).all() and ((step_off * away).sum(axis=1) > 0.1).all()
+    # everywhere: toward the next A* waypoint at about the preferred speed (social force and door turns shape it)
+    wp = np.stack([env.paths[i][min(int(env.wp_index[i]), len(env.paths[i]) - 1)] for i in h])
+    to_wp = wp - pos
+    to_wp /= np.linalg.norm(to_wp, axis=1, keepdims=True)
+    first = everywhere[:, 6] - pos  # 0.2 s in
+    moving = np.linalg.norm(first, axis=1) > 0.05
+    assert moving.any()
+    assert ((first[moving] * to_wp[moving]).sum(axis=1) / np.linalg.norm(first[moving], axis=1) > 0.7).all()
+    assert np.linalg.norm(everywhere[:, 60] - pos, axis=1).max() > 0.8
+    # a reach shorter than any person's distance to its door, along a rollout that creeps 0.5 m: the plans' targets
+    assert door_m.min() > 1.0  # seed 0's people start at least a metre from the door
+    np.testing.assert_array_equal(rollout(float(door_m.min()) - 0.6), off)
+    assert np.abs(rollout(float(door_m.min()) + 0.1) - off).max() > 0.05  # the nearest person is within it
+    env.close()
