@@ -13,7 +13,8 @@
 # names are accepted).
 # Each run writes $OUT/parts/CONFIG_SCENE_SEED.jsonl (a call cut short keeps the runs it finished); at the end the
 # parts are joined into $OUT/CONFIG_fallen.jsonl. SECS (default 200) sets the run length; DSET (e.g. fallen_in_map=1)
-# passes --diffusion-set to the runs with diffusion targets.
+# passes --diffusion-set to the runs with diffusion targets. SET (e.g. DIFFUSION_DOOR_REACH=1.5) adds constants of
+# navzoo.envs.amp_humans to every run's settings.
 set -u
 if [ -d .whl ] && [ -z "${PYTHON:-}" ]; then  # the device machine: bring the wheels
   python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/*.whl 2>&1 | tail -1
@@ -22,7 +23,7 @@ fi
 export OMP_NUM_THREADS=1 PYTHON=${PYTHON:-python3} SECS=${SECS:-200} DSET=${DSET:-}
 export FLAGS=${FLAGS:-human_door_turns+human_fallen_obstacles}
 lscpu | grep "Model name"
-export S="SFM_SIDE_BIAS=0.4+SFM_SIDE_NARROW_REACH=1.5"
+export S="SFM_SIDE_BIAS=0.4+SFM_SIDE_NARROW_REACH=1.5${SET:++$SET}"
 one() {
   case $1 in
     kd*) cfg="$1:0.1:0.1:4:2.0:$FLAGS::::::::::$S"; crowd=diffusion ;;

@@ -48,3 +48,13 @@ def test_default_flags_and_diffusion_settings_and_an_unknown_name(tmp_path: Path
     # DSET reaches the runs with diffusion targets only
     assert d[d.index("--diffusion-set") + 1] == "fallen_in_map=1" and "--diffusion-set" not in s
     assert "xyz_lobby_0" not in logs
+
+
+@pytest.mark.skipif(shutil.which("xargs") is None or shutil.which("timeout") is None, reason="needs xargs and timeout")
+def test_set_adds_constants_to_every_run(tmp_path: Path) -> None:
+    proc, logs = _run(tmp_path, "kdtfrd doorway 0\nskdtfrd home 1\n", SET="DIFFUSION_DOOR_REACH=1.5")
+    assert proc.returncode == 0, proc.stderr
+    for name in ("kdtfrd_doorway_0", "skdtfrd_home_1"):
+        words = logs[name].split()
+        assert words[words.index("--configs") + 1].endswith(
+            ":SFM_SIDE_BIAS=0.4+SFM_SIDE_NARROW_REACH=1.5+DIFFUSION_DOOR_REACH=1.5")
