@@ -154,12 +154,6 @@ STALL_PACE = 0.6
 STALL_MIN_PLAN_SPEED = 0.05  # m/s
 STALL_PLAN_S = 2.0  # s
 STALL_MAX_WARP = 4.0
-# Diffusion targets hand over to the A* path near narrow doors: within DIFFUSION_DOOR_REACH (m) of a stretch of a
-# person's A* path too narrow for the full wall margin (the doors under about 1.0 m of SFM_SIDE_NARROW_REACH), the
-# target rollout heads for the person's next A* waypoint at its preferred speed, as social-force targets do, instead
-# of along the sampled plan (which, for a body that has stood, starts slowly). Door turns shape it there as they shape
-# social-force targets. 0 = off.
-DIFFUSION_DOOR_REACH = 0.0
 # Not within STALL_NARROW_REACH (m) of a stretch of the person's A* path too narrow for the full wall margin (the
 # graded wall margin's narrow points: doors under about 1.0 m); 0 = everywhere.
 STALL_NARROW_REACH = 0.0
@@ -168,6 +162,14 @@ STALL_NARROW_REACH = 0.0
 # for them, and a faster target would walk it into them. 0 = everywhere.
 STALL_CLEAR_M = 0.0
 STALL_CLEAR_DEG = 60.0
+# Diffusion targets hand over to the A* path near narrow doors: within DIFFUSION_DOOR_REACH (m) of a stretch of a
+# person's A* path too narrow for the full wall margin (the doors of the keep-right rule: under about 1.0 m), the
+# target rollout heads for the person's next A* waypoint at its preferred speed, as social-force targets do, instead
+# of along the sampled plan (which, for a body that has stood, starts slowly). Door turns shape it there as they shape
+# social-force targets. 0 = off. Off: at 1.5 m ahead in the doorway on the AMD VM and behind on the Intel device
+# (seeds 0-7; successes per run +4.9 +- 3.0 and -5.2 +- 4.7), level in the home, behind in all four held-out scenes
+# with such doors (docs/crowd_log.md, "Diffusion targets handed to the A* path near narrow doors").
+DIFFUSION_DOOR_REACH = 0.0
 
 
 # A physics body is pushed and swerves: it can pass a waypoint of its A* path farther than the
