@@ -501,3 +501,30 @@ def test_a_person_whom_fallen_bodies_cut_off_waits_when_asked(wait):
     if not reachable:  # the old behaviour where no path leads to the goal: a straight line to it
         np.testing.assert_array_equal(env.paths[1], env.goal[1][None])
     env.close()
+
+
+def test_a_person_cut_off_from_every_new_goal_draws_fallen_goal_tries_goals_and_keeps_the_last():
+    """human_fallen_wait: with no reachable goal, ``_retarget_humans`` draws FALLEN_GOAL_TRIES goals in all (the
+    first one and one after each failed try but the last), and the person waits with the last goal it tried."""
+    from navzoo.envs.fallen import FALLEN_GOAL_TRIES
+
+    env = _raw(scene="doorway", n_robots=0, n_humans=2, max_episode_steps_override=200, human_fallen_wait=True)
+    env.reset(seed=1, options={"human_starts": [[2.0, 7.0], [5.0, 4.0]], "human_goals": [[2.0, 7.0], [13.0, 4.0]]})
+    env._fallen_lying = lambda: {0: np.array([[8.0, 4.0], [8.0, 3.2], [8.0, 4.8], [8.3, 3.5], [7.7, 4.5], [8.1, 4.0]])}
+    env.human_fallen[0] = env.amp.fallen[0] = True
+    env._avoid_fallen()
+    sampler = env._samplers["human"]
+    drawn = []
+
+    def beyond_the_door(rng, pos, kind, min_goal_dist=0.0):  # every goal across the blocked door, each a new one
+        drawn.append(np.array([13.0, 3.5 + 0.1 * len(drawn)]))
+        return drawn[-1]
+
+    sampler.sample_goal = beyond_the_door
+    env.d_goal[env.n_robots] = 10.0  # the fallen person 0 (which stands at its goal) is not retargeted here
+    env.d_goal[env.n_robots + 1] = 0.0
+    env._retarget_humans()
+    assert len(drawn) == FALLEN_GOAL_TRIES
+    assert env.human_waiting_fallen[1]
+    np.testing.assert_array_equal(env.goal[env.n_robots + 1], drawn[-1])
+    env.close()

@@ -1074,10 +1074,10 @@ class NavEnv(ParallelEnv):
                 path = None
                 if self.config.human_fallen_wait and self._fallen_grid is not None and not self.human_fallen[j]:
                     # fallen bodies may cut the way to the goal: draw again, and wait if none can be reached
-                    for _ in range(FALLEN_GOAL_TRIES):
+                    for attempt in range(FALLEN_GOAL_TRIES):
                         path = self._plan(i, self.pos[i], goal, fallback=False)
-                        if path is not None:
-                            break
+                        if path is not None or attempt == FALLEN_GOAL_TRIES - 1:
+                            break  # (the last goal tried is kept: no untried goal is drawn after the last try)
                         goal = self._samplers["human"].sample_goal(self.rng_tasks, self.pos[i], "human",
                                                                     min_goal_dist=self.config.min_goal_distance)
                     self.human_waiting_fallen[j] = path is None
