@@ -129,6 +129,9 @@ DIFFUSION_SPEED_CAP = 1.0
 # taking it at once (agents.door_turns.DoorParams.no_room_waits). An option, off; crowd_log.md, "Door turns for the
 # physics bodies".
 DOOR_NO_ROOM_WAITS = False
+# How long a door turn's grant lasts for AMP pedestrians without its holder getting through (s;
+# agents.door_turns.DoorParams.grant_max_s, 10 s for every crowd). The holder then asks again, last in the queue.
+DOOR_GRANT_MAX_S = 10.0
 # Door turns find the doors of a path with navzoo.envs.doors.path_doors, which checks for jambs on both sides at the
 # path's narrowest point. A path that enters a door slantwise has that point up to 0.2 m off the jamb line, and the
 # door is missed for that path (the doorway: 11 of 60 sampled paths; the bottleneck 12, the cluttered room 17, the

@@ -393,7 +393,8 @@ class NavEnv(ParallelEnv):
         # physics pedestrians may hold a yield until the other has passed (amp_humans.YIELD_HOLD_S; 0 = off)
         hold = YieldParams(hold_max=AMP_YIELD_HOLD_S) if cfg.human_model == "amp" else None
         self.turn_taking = TurnTaking(H, hold) if cfg.human_yielding and rp is None else None
-        door_params = DoorParams(no_room_waits=bool(amp_humans.DOOR_NO_ROOM_WAITS)) if cfg.human_model == "amp" else None
+        door_params = DoorParams(no_room_waits=bool(amp_humans.DOOR_NO_ROOM_WAITS),
+                                 grant_max_s=float(amp_humans.DOOR_GRANT_MAX_S)) if cfg.human_model == "amp" else None
         self.door_turns = DoorTurns(H, self.grid.distance_at, door_params) if cfg.door_turns and rp is None else None
         self._door_paths: list[object] = [None] * H
 
