@@ -271,12 +271,15 @@ def test_the_side_without_room_waits_only_with_no_room_waits(no_room_waits):
 def test_amp_pedestrians_door_params_follow_the_constant(monkeypatch):
     from navzoo.envs import amp_humans
 
+    assert amp_humans.DOOR_GRANT_MAX_S == DoorParams().grant_max_s  # by default the grants of every crowd
     monkeypatch.setattr(amp_humans, "DOOR_NO_ROOM_WAITS", True)
+    monkeypatch.setattr(amp_humans, "DOOR_GRANT_MAX_S", 6.0)
     env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp", crowd_model="sfm", time_limit=5.0)
     env.reset(seed=0)
-    assert env.door_turns.params.no_room_waits
+    assert env.door_turns.params.no_room_waits and env.door_turns.params.grant_max_s == 6.0
     env.close()
     kin = NavEnv(scene="doorway", n_robots=0, n_humans=2, crowd_model="sfm", human_door_turns=True)
     kin.reset(seed=0)
-    assert not kin.door_turns.params.no_room_waits  # kinematic crowds keep the rule as it was
+    # kinematic crowds keep the rules as they were
+    assert not kin.door_turns.params.no_room_waits and kin.door_turns.params.grant_max_s == DoorParams().grant_max_s
     kin.close()
