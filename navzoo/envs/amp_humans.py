@@ -647,10 +647,12 @@ class AmpHumans:
         graded = GRADED_WALL_MARGIN and self.wall_margin > 0.0 and social
         side_narrow = social and self.side_narrow_reach > 0.0 and self.side_bias_narrow != sf_params.side_bias
         narrow = self.narrow_passages(paths, env.radius[h]) if graded else None
-        if side_narrow:  # the rollouts' parameters near narrow doors: another keep-right gain
-            sf_narrow = replace(sf_params, side_bias=self.side_bias_narrow)
+        door_astar = env.diffusion is not None and DIFFUSION_DOOR_REACH > 0.0  # diffusion targets hand over near doors
+        if side_narrow or door_astar:
             # the doors of the default wall margin, whatever amp_wall_margin is: the same doors under about 1.0 m
             door_points = [pts for pts, _ in self.narrow_passages(paths, env.radius[h], WALL_PLAN_MARGIN)]
+        if side_narrow:  # the rollouts' parameters near narrow doors: another keep-right gain
+            sf_narrow = replace(sf_params, side_bias=self.side_bias_narrow)
         wall_rad = env.radius[h] + self.wall_margin
         visible = [env.waypoint_visibility(i) for i in h]
         vmax = np.full(self.n, env.config.human_max_speed)
@@ -691,9 +693,11 @@ class AmpHumans:
                     others = np.concatenate([pos, r_pos]) if len(r_pos) else pos
                     warp = np.where(blocked_ahead(pos[stalled], later - pos[stalled], others, STALL_CLEAR_M, STALL_CLEAR_DEG),
                                     1.0, warp)
-        door_astar = diffusion is not None and DIFFUSION_DOOR_REACH > 0.0
-        if door_astar:  # the narrow doors of each person's A* path, where its rollout follows the path instead
-            astar_doors = [pts for pts, _ in self.narrow_passages(paths, env.radius[h], WALL_PLAN_MARGIN)]
+        def toward_waypoints(who, pos):  # people `who` head for their next A* waypoint at their preferred speed
+            for j in who:  # advance along the A* path, as the env does for physics pedestrians
+                wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD, visible[j])
+            wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in who])
+            return preferred_velocity(pos[who], wp, goal[who], v_pref[who])
 
         def social_force(pos, vel, pref, o_pos, wall_rad):  # one social-force step of the rollout
             def step(params):
@@ -726,19 +730,11 @@ class AmpHumans:
                     speed = np.linalg.norm(fast, axis=1, keepdims=True)
                     pref[stalled] = np.where(speed > cap[stalled], fast / np.maximum(speed, 1e-9) * cap[stalled], fast)
                 if door_astar:
-                    near = np.flatnonzero(near_narrow(astar_doors, pos, DIFFUSION_DOOR_REACH) & (v_pref > 0.0))
+                    near = np.flatnonzero(near_narrow(door_points, pos, DIFFUSION_DOOR_REACH) & (v_pref > 0.0))
                     if near.size:
-                        for j in near:
-                            wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD,
-                                                           visible[j])
-                        wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in near])
-                        pref[near] = preferred_velocity(pos[near], wp, goal[near], v_pref[near])
+                        pref[near] = toward_waypoints(near, pos)
             else:
-                for j in range(self.n):  # advance along the A* path, as the env does for physics pedestrians
-                    wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD,
-                                                   visible[j])
-                wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in range(self.n)])
-                pref = preferred_velocity(pos, wp, goal, v_pref)
+                pref = toward_waypoints(np.arange(self.n), pos)
             # yields in progress shape the rollout ahead, and so do the door turns, at the rolled-out positions
             pref = env.crowd_conventions(pref, env.sim_time + k * PLAN_DT, pos, v_pref)
             o_pos = r_pos + (k * PLAN_DT) * r_vel
