@@ -131,6 +131,8 @@ DIFFUSION_SPEED_CAP = 1.0
 DOOR_NO_ROOM_WAITS = False
 # How long a door turn's grant lasts for AMP pedestrians without its holder getting through (s;
 # agents.door_turns.DoorParams.grant_max_s, 10 s for every crowd). The holder then asks again, last in the queue.
+# 4 s was tried (crowd_log.md, "Where the doorway's time goes"): on the Intel device the doorway was level with either
+# target generator, the home ahead with diffusion targets only, the held-out door scenes level; it stays 10 s.
 DOOR_GRANT_MAX_S = 10.0
 # Door turns find the doors of a path with navzoo.envs.doors.path_doors, which checks for jambs on both sides at the
 # path's narrowest point. A path that enters a door slantwise has that point up to 0.2 m off the jamb line, and the
