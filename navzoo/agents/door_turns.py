@@ -24,7 +24,9 @@ turn-taking does:
   the queue moves, until its turn comes;
 * a grant ends when its holder is ``passed`` beyond the door's centre, stops taking part (fell,
   arrived), gets a new path, or has held it ``grant_max_s`` seconds without getting through (it then
-  asks again, last in the queue), so a person stuck elsewhere does not close a door for good;
+  asks again, last in the queue), so a person stuck elsewhere does not close a door for good (with
+  ``DoorParams.grant_stall_s``, also when its holder has not come closer to the door for that long while
+  someone else asks for it; off by default, ``amp_humans.DOOR_GRANT_STALL_S`` for AMP pedestrians);
 * someone already in a door (within ``throat`` of its centre) holds it, granted or not, and so does
   one who asks from a side with no waiting spot out of the door's lane (a door off a narrow corridor,
   where a waiting person would block the corridor): the other side waits for it. With
@@ -60,6 +62,10 @@ class DoorParams:
         throat: a person within this distance of a door's centre, not yet through, is in the door (m).
         platoon_s: no new grant the door's current way once somebody on the other side has waited this long (s).
         grant_max_s: a grant that has not got its holder through within this long ends (s).
+        grant_stall_s: a grant whose holder has not come ``grant_stall_gain`` closer to the door's centre within
+            this long ends while someone else asks for the door (s; None: off, grants end only by
+            ``grant_max_s``). The holder asks anew, last in the queue.
+        grant_stall_gain: how much closer to the door's centre (m) counts as coming on, for ``grant_stall_s``.
         merge: doors found on different paths whose centres are closer than this are one door (m).
         spot_clearance: the waiting spot keeps at least this distance from walls (m).
         no_room_waits: a person coming from a side with no waiting spot (a door off a narrow passage) takes the
@@ -75,15 +81,21 @@ class DoorParams:
     throat: float = 0.6
     platoon_s: float = 10.0
     grant_max_s: float = 10.0
+    grant_stall_s: float | None = None
+    grant_stall_gain: float = 0.3
     merge: float = 0.6
     spot_clearance: float = 0.35
     no_room_waits: bool = False
 
     def __post_init__(self) -> None:
-        for name in ("approach", "wait", "passed", "throat", "platoon_s", "grant_max_s", "merge", "spot_clearance"):
+        for name in ("approach", "wait", "passed", "throat", "platoon_s", "grant_max_s", "grant_stall_gain", "merge",
+                     "spot_clearance"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"DoorParams.{name} must be a finite number > 0, got {v!r}")
+        v = self.grant_stall_s
+        if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ValueError(f"DoorParams.grant_stall_s must be None (off) or a finite number > 0, got {v!r}")
         if not (isinstance(self.side_step, (int, float)) and math.isfinite(self.side_step) and self.side_step >= 0):
             raise ValueError(f"DoorParams.side_step must be a finite number >= 0, got {self.side_step!r}")
         if self.wait >= self.approach:
@@ -117,6 +129,9 @@ class DoorTurns:
         self.k = np.zeros(self.n, dtype=int)  # index of each person's next door in its route
         self.granted = np.full(self.n, -1)  # the door each person holds (-1: none)
         self.grant_t = np.full(self.n, -np.inf)
+        # for grant_stall_s: the holder's closest distance to its door so far (by grant_stall_gain steps) and when
+        self.close_d = np.full(self.n, np.inf)
+        self.close_t = np.full(self.n, -np.inf)
         self.request_t = np.full(self.n, np.inf)  # since when each person has asked (inf: not asking)
         self._cur = np.full(self.n, -1)  # next door after the last update (-1: none)
         self._sign = np.zeros(self.n, dtype=int)
@@ -202,6 +217,8 @@ class DoorTurns:
     def _release(self, who: np.ndarray) -> None:
         self.granted[who] = -1
         self.grant_t[who] = -np.inf
+        self.close_d[who] = np.inf
+        self.close_t[who] = -np.inf
         self.request_t[who] = np.inf
 
     def _held_ways(self, sign: np.ndarray) -> np.ndarray:
@@ -238,12 +255,22 @@ class DoorTurns:
         pos = np.asarray(pos, dtype=np.float64).reshape(self.n, 2)
         cur, sign = self._next_door(pos)
         self._cur, self._sign = cur, sign
+        dist = np.where(cur >= 0, np.linalg.norm(pos - self.centres[np.maximum(cur, 0)], axis=1), np.inf) \
+            if self.n_doors else np.full(self.n, np.inf)
         # grants end when their holder stops taking part, is past the door, or lapses (it then asks anew,
         # last in the queue, below)
         gone = (self.granted >= 0) & (~active | (self.granted != cur) | (t - self.grant_t > p.grant_max_s))
+        if p.grant_stall_s is not None:
+            held = self.granted >= 0
+            closer = held & (dist < self.close_d - p.grant_stall_gain)
+            self.close_d[closer], self.close_t[closer] = dist[closer], t
+            # ... or their holder has not come on for grant_stall_s while someone else asks for the door (not one
+            # in the door: it holds it anyway)
+            asked = np.zeros(self.n_doors, dtype=bool)
+            asked[cur[self.waiting() & active & (cur >= 0)]] = True
+            gone |= held & (t - self.close_t > p.grant_stall_s) & asked[np.maximum(self.granted, 0)] \
+                & (dist >= p.throat)
         self._release(np.flatnonzero(gone))
-        dist = np.where(cur >= 0, np.linalg.norm(pos - self.centres[np.maximum(cur, 0)], axis=1), np.inf) \
-            if self.n_doors else np.full(self.n, np.inf)
         # who asks: within reach of its next door, or already asking (a queue may stretch beyond reach)
         near = active & (cur >= 0) & ((dist < p.approach) | np.isfinite(self.request_t))
         self.request_t[~near & (self.granted < 0)] = np.inf
@@ -271,6 +298,7 @@ class DoorTurns:
                     self.granted[q], self.grant_t[q], way = d, t, int(sign[q])
                     new[q] = True
         self.request_t[self.granted >= 0] = np.inf
+        self.close_d[new], self.close_t[new] = dist[new], t
         return new
 
     def waiting(self) -> np.ndarray:

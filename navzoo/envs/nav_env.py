@@ -394,7 +394,8 @@ class NavEnv(ParallelEnv):
         hold = YieldParams(hold_max=AMP_YIELD_HOLD_S) if cfg.human_model == "amp" else None
         self.turn_taking = TurnTaking(H, hold) if cfg.human_yielding and rp is None else None
         door_params = DoorParams(no_room_waits=bool(amp_humans.DOOR_NO_ROOM_WAITS),
-                                 grant_max_s=float(amp_humans.DOOR_GRANT_MAX_S)) if cfg.human_model == "amp" else None
+                                 grant_max_s=float(amp_humans.DOOR_GRANT_MAX_S),
+                                 grant_stall_s=float(amp_humans.DOOR_GRANT_STALL_S) or None) if cfg.human_model == "amp" else None
         self.door_turns = DoorTurns(H, self.grid.distance_at, door_params) if cfg.door_turns and rp is None else None
         self._door_paths: list[object] = [None] * H
 

@@ -283,3 +283,61 @@ def test_amp_pedestrians_door_params_follow_the_constant(monkeypatch):
     # kinematic crowds keep the rules as they were
     assert not kin.door_turns.params.no_room_waits and kin.door_turns.params.grant_max_s == DoorParams().grant_max_s
     kin.close()
+
+
+def test_a_grant_ends_when_its_holder_does_not_come_on():
+    dt = _turns(2, grant_stall_s=2.0, grant_stall_gain=0.3)
+    dt.set_route(0, [(CENTRE, AXIS)])
+    dt.set_route(1, [(CENTRE, -AXIS)])
+    pos = np.array([[-2.0, 0.0], [2.0, 0.0]])
+    dt.update(0.0, pos)
+    assert dt.granted[0] == 0 and dt.waiting()[1]
+    pos[0] = [-1.6, 0.0]  # 0.4 m closer: it comes on, the stall clock starts again at 1 s
+    dt.update(1.0, pos)
+    assert dt.granted[0] == 0
+    pos[0] = [-1.5, 0.0]  # only 0.1 m closer since: not coming on
+    dt.update(2.5, pos)
+    assert dt.granted[0] == 0  # 1.5 s without coming on < 2 s
+    dt.update(3.1, pos)  # 2.1 s: its grant ends, the other side's waiting person gets the door
+    assert dt.granted[0] == -1 and dt.granted[1] == 0 and dt.waiting()[0]
+
+
+def test_a_stalled_grant_is_kept_while_nobody_else_asks_or_the_holder_is_in_the_door():
+    dt = _turns(2, grant_stall_s=2.0)
+    dt.set_route(0, [(CENTRE, AXIS)])
+    dt.set_route(1, [(CENTRE, -AXIS)])
+    pos = np.array([[-2.0, 0.0], [6.0, 0.0]])  # person 1 far from the door: not asking
+    dt.update(0.0, pos)
+    dt.update(5.0, pos)
+    assert dt.granted[0] == 0 and dt.grant_t[0] == 0.0  # nobody else asks: the grant goes on (not re-granted)
+    pos = np.array([[-0.3, 0.0], [2.0, 0.0]])  # the holder stands in the door, the other side asks
+    dt.update(5.5, pos)
+    dt.update(9.0, pos)
+    assert dt.granted[0] == 0 and dt.granted[1] == -1
+    # off (the default): the same stall keeps the grant until grant_max_s
+    off = _turns(2)
+    off.set_route(0, [(CENTRE, AXIS)])
+    off.set_route(1, [(CENTRE, -AXIS)])
+    far = np.array([[-2.0, 0.0], [2.0, 0.0]])
+    off.update(0.0, far)
+    off.update(5.0, far)
+    assert off.granted[0] == 0
+
+
+def test_grant_stall_params_are_checked():
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="grant_stall_s"):
+            DoorParams(grant_stall_s=bad)
+    with pytest.raises(ValueError, match="grant_stall_gain"):
+        DoorParams(grant_stall_gain=0.0)
+
+
+def test_amp_pedestrians_take_the_grant_stall_constant(monkeypatch):
+    from navzoo.envs import amp_humans
+
+    assert amp_humans.DOOR_GRANT_STALL_S == 0 and DoorParams().grant_stall_s is None  # off by default
+    monkeypatch.setattr(amp_humans, "DOOR_GRANT_STALL_S", 3.0)
+    env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp", crowd_model="sfm", time_limit=5.0)
+    env.reset(seed=0)
+    assert env.door_turns.params.grant_stall_s == 3.0
+    env.close()
