@@ -260,7 +260,7 @@ class DoorTurns:
         # grants end when their holder stops taking part, is past the door, or lapses (it then asks anew,
         # last in the queue, below)
         gone = (self.granted >= 0) & (~active | (self.granted != cur) | (t - self.grant_t > p.grant_max_s))
-        if p.grant_stall_s is not None:
+        if p.grant_stall_s is not None and self.n_doors:
             held = self.granted >= 0
             closer = held & (dist < self.close_d - p.grant_stall_gain)
             self.close_d[closer], self.close_t[closer] = dist[closer], t

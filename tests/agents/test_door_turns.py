@@ -341,3 +341,10 @@ def test_amp_pedestrians_take_the_grant_stall_constant(monkeypatch):
     env.reset(seed=0)
     assert env.door_turns.params.grant_stall_s == 3.0
     env.close()
+
+
+def test_grant_stall_with_no_doors_on_any_path():
+    dt = _turns(2, grant_stall_s=2.0)  # no routes: no door registered
+    pos = np.array([[-2.0, 0.0], [2.0, 0.0]])
+    assert not dt.update(0.0, pos).any() and not dt.update(5.0, pos).any()
+    assert (dt.granted == -1).all()
