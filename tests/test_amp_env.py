@@ -466,6 +466,28 @@ def test_the_wall_strength_of_the_target_rollouts_is_a_config_field():
             NavConfig(human_model="amp", dt=DT, amp_wall_strength=bad)
 
 
+def test_softer_walls_for_a_rollout_that_the_walls_hold_still(monkeypatch):
+    """SFM_WALL_STALL: in the cluttered room's 0.63 m gap between the pillar and a chair, the walls' push on both sides
+    balances the plan's pull and the target rollout of a person alone stands; with softer walls for whom the walls
+    hold still it walks on through the gap. A rollout that nothing holds (the home's hall) is the same either way."""
+    from navzoo.envs import amp_humans
+
+    def rollout(scene, start, goal, on):
+        monkeypatch.setattr(amp_humans, "SFM_WALL_STALL", on)
+        env = _raw(scene=scene, n_robots=0, n_humans=1, crowd_model="sfm")
+        env.reset(seed=0, options={"human_starts": [start], "human_goals": [goal]})
+        path = env.amp.paths[0].copy()
+        env.close()
+        return path
+
+    held = rollout("cluttered_room", [5.68, 3.88], [3.04, 4.33], False)
+    freed = rollout("cluttered_room", [5.68, 3.88], [3.04, 4.33], True)
+    assert np.linalg.norm(held[-1] - held[0]) < 0.3
+    assert np.linalg.norm(freed[-1] - freed[0]) > 1.5
+    np.testing.assert_array_equal(rollout("home", [7.3, 2.6], [11.65, 2.59], False),
+                                  rollout("home", [7.3, 2.6], [11.65, 2.59], True))
+
+
 @pytest.mark.parametrize("wait", [True, False])
 def test_a_person_whom_fallen_bodies_cut_off_waits_when_asked(wait):
     """human_fallen_wait: a body across the doorway's only door leaves person 1 no way round; it stands (its target

@@ -233,6 +233,14 @@ SFM_A_WALL = 1.0
 SFM_WALL_NEAR_RANGE = 0.0
 SFM_A_WALL_NEAR = 0.3
 SFM_WALL_NEAR_RAMP = 0.0
+# Softer walls for the people whom the walls hold still: with SFM_WALL_STALL on, a person of the social-force rollouts
+# who wants to walk (preferred speed above 0.3 m/s) but has gone slower than 0.3 of it for 1 s of the rollout's clock
+# feels the walls with SFM_A_WALL_NEAR (NavConfig.amp_wall_near_strength) for the next 2 s of it (a StallSwitch of the
+# diffusion crowd's hybrid walker, on the rollout's clock). In a gap a little wider than the body (the home's 0.8-0.9 m
+# doors, the cluttered room's 0.6-0.8 m gaps) the walls' push on both sides balances the pull of the plan, so the
+# rollout, and with it the target, stands while the plan walks on: a person alone stands there for tens of seconds
+# (docs/crowd_log.md, "One person alone"). An option, off.
+SFM_WALL_STALL = False
 # The keep-right gain of the social-force target rollouts (SocialForceParams.side_bias): a share of the push from
 # someone ahead that turns a person to its right, so that people meeting head-on pass left shoulder to left shoulder.
 # 0.4 since 2026-12-06 (before: 0.1, the kinematic crowd's own): lanes form earlier in counterflow, and success rose by
@@ -659,6 +667,12 @@ class AmpHumans:
             door_points = [pts for pts, _ in self.narrow_passages(paths, env.radius[h], WALL_PLAN_MARGIN)]
         if side_narrow:  # the rollouts' parameters near narrow doors: another keep-right gain
             sf_narrow = replace(sf_params, side_bias=self.side_bias_narrow)
+        wall_stall = None
+        if SFM_WALL_STALL and env.config.crowd_model in ("sfm", "diffusion"):  # softer walls for who they hold still
+            from navzoo.agents.diffusion.crowd import StallSwitch
+
+            wall_stall = StallSwitch(self.n)
+            soft = {"A_wall": self.sfm_fields["A_wall_near"]}
         wall_rad = env.radius[h] + self.wall_margin
         visible = [env.waypoint_visibility(i) for i in h]
         vmax = np.full(self.n, env.config.human_max_speed)
@@ -705,8 +719,10 @@ class AmpHumans:
             wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in who])
             return preferred_velocity(pos[who], wp, goal[who], v_pref[who])
 
-        def social_force(pos, vel, pref, o_pos, wall_rad):  # one social-force step of the rollout
+        def social_force(pos, vel, pref, o_pos, wall_rad, softer=False):  # one social-force step of the rollout
             def step(params):
+                if softer:
+                    params = replace(params, **soft)
                 return social_force_velocities(pos, vel, pref, sf_rad, vmax, PLAN_DT, params, env.segments,
                                                others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
                                                segment_groups=env.segment_groups, wall_radius=wall_rad)
@@ -751,7 +767,11 @@ class AmpHumans:
                     pref = corner_steer(pos, pref, self.corners, wall_rad, self.corner_margin, self.a_wall,
                                         sf_params.B_wall, sf_params.tau)
                 if walker == "sfm":
-                    vel = social_force(pos, vel, pref, o_pos, wall_rad)
+                    v_new = social_force(pos, vel, pref, o_pos, wall_rad)
+                    use = wall_stall.update(k * PLAN_DT, PLAN_DT, v_new, pref) if wall_stall is not None else None
+                    if use is not None and use.any():  # the rows of the same step with softer walls, exact as above
+                        v_new[use] = social_force(pos, vel, pref, o_pos, wall_rad, softer=True)[use]
+                    vel = v_new
                 else:
                     v_new = orca_velocities(np.concatenate([pos, o_pos]), np.concatenate([vel, r_vel]),
                                             np.concatenate([pref, r_vel]), np.concatenate([orca_rad, r_rad]),
