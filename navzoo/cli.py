@@ -63,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     tsub = train.add_subparsers(dest="train_command", metavar="MODEL")
     from navzoo.agents.amp.train import add_arguments as add_amp_arguments
 
-    add_amp_arguments(tsub.add_parser("amp", help="the AMP pedestrian controller (resumable; see docs/amp_training.md)"))
+    add_amp_arguments(tsub.add_parser("amp", help="the AMP pedestrian controller (resumable; see docs/amp_learner.md and docs/pedestrians.md)"))
     from navzoo.agents.amp.steering import add_arguments as add_trim_arguments
 
     add_trim_arguments(tsub.add_parser(
