@@ -135,9 +135,13 @@ DOOR_NO_ROOM_WAITS = False
 # target generator, the home ahead with diffusion targets only, the held-out door scenes level; it stays 10 s.
 DOOR_GRANT_MAX_S = 10.0
 # A grant that ends sooner when its holder does not come on (agents.door_turns.DoorParams.grant_stall_s: not
-# 0.3 m closer to the door within this many seconds while someone else asks for the door; 0: off, as for every
-# crowd). An option, off; crowd_log.md, "Where the doorway's time goes".
+# 0.3 m closer to the door within this many seconds while someone else asks for the door; 0: off, as for the
+# kinematic crowds): DOOR_GRANT_STALL_S for AMP pedestrians with social-force or ORCA targets (off: level on the AMD
+# VM, behind on the Intel device), DIFFUSION_DOOR_GRANT_STALL_S with diffusion targets (3 s since 2026-12-07: ahead in
+# the doorway and the home on both CPUs, +5.8 / +2.2 successes per run on the AMD VM and +2.0 / +4.8 on the Intel
+# device, seeds 0-7; the held-out door scenes level; crowd_log.md, "Where the doorway's time goes").
 DOOR_GRANT_STALL_S = 0.0
+DIFFUSION_DOOR_GRANT_STALL_S = 3.0
 # Door turns find the doors of a path with navzoo.envs.doors.path_doors, which checks for jambs on both sides at the
 # path's narrowest point. A path that enters a door slantwise has that point up to 0.2 m off the jamb line, and the
 # door is missed for that path (the doorway: 11 of 60 sampled paths; the bottleneck 12, the cluttered room 17, the

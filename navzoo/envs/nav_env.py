@@ -393,9 +393,10 @@ class NavEnv(ParallelEnv):
         # physics pedestrians may hold a yield until the other has passed (amp_humans.YIELD_HOLD_S; 0 = off)
         hold = YieldParams(hold_max=AMP_YIELD_HOLD_S) if cfg.human_model == "amp" else None
         self.turn_taking = TurnTaking(H, hold) if cfg.human_yielding and rp is None else None
+        stall_s = amp_humans.DIFFUSION_DOOR_GRANT_STALL_S if cfg.crowd_model == "diffusion" else amp_humans.DOOR_GRANT_STALL_S
         door_params = DoorParams(no_room_waits=bool(amp_humans.DOOR_NO_ROOM_WAITS),
                                  grant_max_s=float(amp_humans.DOOR_GRANT_MAX_S),
-                                 grant_stall_s=float(amp_humans.DOOR_GRANT_STALL_S) or None) if cfg.human_model == "amp" else None
+                                 grant_stall_s=float(stall_s) or None) if cfg.human_model == "amp" else None
         self.door_turns = DoorTurns(H, self.grid.distance_at, door_params) if cfg.door_turns and rp is None else None
         self._door_paths: list[object] = [None] * H
 

@@ -333,14 +333,25 @@ def test_grant_stall_params_are_checked():
 
 
 def test_amp_pedestrians_take_the_grant_stall_constant(monkeypatch):
+    """Off for social-force targets and for kinematic crowds, 3 s for diffusion targets (the defaults); each
+    constant reaches only its own target generator."""
     from navzoo.envs import amp_humans
 
-    assert amp_humans.DOOR_GRANT_STALL_S == 0 and DoorParams().grant_stall_s is None  # off by default
-    monkeypatch.setattr(amp_humans, "DOOR_GRANT_STALL_S", 3.0)
-    env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp", crowd_model="sfm", time_limit=5.0)
-    env.reset(seed=0)
-    assert env.door_turns.params.grant_stall_s == 3.0
-    env.close()
+    assert DoorParams().grant_stall_s is None  # off for the kinematic crowds
+
+    def stall(crowd, human_model="amp"):
+        env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model=human_model, crowd_model=crowd,
+                     time_limit=5.0, human_door_turns=True)
+        env.reset(seed=0)
+        out = env.door_turns.params.grant_stall_s
+        env.close()
+        return out
+
+    assert stall("sfm") is None and stall("diffusion") == 3.0 and stall("diffusion", "kinematic") is None
+    monkeypatch.setattr(amp_humans, "DOOR_GRANT_STALL_S", 2.0)
+    assert stall("sfm") == 2.0 and stall("diffusion") == 3.0
+    monkeypatch.setattr(amp_humans, "DIFFUSION_DOOR_GRANT_STALL_S", 0.0)
+    assert stall("diffusion") is None
 
 
 def test_grant_stall_with_no_doors_on_any_path():
