@@ -676,7 +676,6 @@ class AmpHumans:
             from navzoo.agents.diffusion.crowd import StallSwitch
 
             wall_stall = StallSwitch(self.n)
-            soft = {"A_wall": self.sfm_fields["A_wall_near"]}
         wall_rad = env.radius[h] + self.wall_margin
         visible = [env.waypoint_visibility(i) for i in h]
         vmax = np.full(self.n, env.config.human_max_speed)
@@ -725,8 +724,8 @@ class AmpHumans:
 
         def social_force(pos, vel, pref, o_pos, wall_rad, softer=False):  # one social-force step of the rollout
             def step(params):
-                if softer:
-                    params = replace(params, **soft)
+                if softer:  # SFM_WALL_STALL's rows: the walls of the "near" strength
+                    params = replace(params, A_wall=params.A_wall_near)
                 return social_force_velocities(pos, vel, pref, sf_rad, vmax, PLAN_DT, params, env.segments,
                                                others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
                                                segment_groups=env.segment_groups, wall_radius=wall_rad)
