@@ -58,3 +58,30 @@ def test_set_adds_constants_to_every_run(tmp_path: Path) -> None:
         words = logs[name].split()
         assert words[words.index("--configs") + 1].endswith(
             ":SFM_SIDE_BIAS=0.4+SFM_SIDE_NARROW_REACH=1.5+DIFFUSION_DOOR_REACH=1.5")
+
+
+@pytest.mark.skipif(shutil.which("xargs") is None or shutil.which("timeout") is None, reason="needs xargs and timeout")
+def test_policy_fills_the_policy_field_and_pack_keeps_the_parts_in_one_file(tmp_path: Path) -> None:
+    import sys
+    import tarfile
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from amp_target_ablation import parse_config
+
+    policy = tmp_path / "pol"
+    policy.mkdir()
+    (policy / "config.json").write_text("{}")
+    proc, _ = _run(tmp_path, "kdtx doorway 0\nskdtx home 1\n", POLICY=str(policy), PACK="1")
+    assert proc.returncode == 0, proc.stderr
+    out = tmp_path / "out"
+    assert not (out / "parts").exists()  # packed: the device tool returns at most 8 files
+    with tarfile.open(out / "parts.tgz") as tar:
+        logs = {Path(m.name).stem: tar.extractfile(m).read().decode() for m in tar.getmembers() if m.name.endswith(".log")}
+    assert set(logs) == {"kdtx_doorway_0", "skdtx_home_1"}
+    for name, crowd_fields in (("kdtx_doorway_0", {}), ("skdtx_home_1", {"graded": True, "lag": True})):
+        words = logs[name].split()
+        cfg = parse_config(words[words.index("--configs") + 1])
+        assert cfg["policy"] == str(policy) and cfg["trim"] is None
+        assert cfg["set"] == {"SFM_SIDE_BIAS": 0.4, "SFM_SIDE_NARROW_REACH": 1.5}
+        for key, value in crowd_fields.items():
+            assert cfg[key] is value
