@@ -35,7 +35,8 @@ def build_parser() -> argparse.ArgumentParser:
     from navzoo.agents.baselines import policy_names
 
     demo.add_argument("--policy", default="orca",
-                      help=f"baseline robot controller: {', '.join(policy_names())} (default orca)")
+                      help=f"baseline robot controller: {', '.join(policy_names())} (default orca; case, '_' and '-' "
+                           "do not matter: pure_pursuit is pure-pursuit)")
     demo.add_argument("--humans", type=int, default=None, help="number of pedestrians (default: the scene's)")
     demo.add_argument("--no-video", action="store_true", help="skip the video")
     demo.add_argument("--json", action="store_true", help="print the metrics as one JSON object on stdout")
