@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 
 def _int_list(text: str) -> list[int]:
@@ -145,6 +146,19 @@ def build_parser() -> argparse.ArgumentParser:
     speed.add_argument("--crowd", default="sfm", choices=["sfm", "orca", "orca_rvo2"])
     speed.add_argument("--json", action="store_true")
     return parser
+
+
+def _source_trims(paths: list[str]) -> list[str]:
+    """``"DIR has 0.025 rad"`` for each exported AMP policy of ``paths`` whose config carries a steering trim."""
+    out = []
+    for p in paths:
+        try:
+            trim = json.loads((Path(p) / "config.json").read_text()).get("steering_trim")
+        except (OSError, ValueError):
+            continue
+        if isinstance(trim, dict) and trim.get("rad"):
+            out.append(f"{p} has {trim['rad']} rad")
+    return out
 
 
 def _weights(text: str | None) -> list[float] | None:
@@ -302,6 +316,10 @@ def _train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         except (ValueError, CheckpointError) as e:
             parser.error(f"train amp-average: {e}")
         print(json.dumps({"policy": str(out), "averaged_from": json.loads((out / "config.json").read_text())["averaged_from"]}))
+        trims = _source_trims(args.policies)
+        if trims:  # the average carries none: say so, or it would walk untrimmed unnoticed
+            print(f"note: the average has no steering trim, though {', '.join(trims)} "
+                  f"(calibrate one for it: navzoo train amp-trim --policy {out})", file=sys.stderr)
         return 0
     if args.train_command == "amp-blend":
         from navzoo.agents.amp.blend import write_blend

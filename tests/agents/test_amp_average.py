@@ -87,6 +87,18 @@ def test_cli_writes_the_soup_and_reports_bad_weights(tmp_path: Path, capsys: pyt
     assert "amp-average" in capsys.readouterr().err
 
 
+def test_cli_says_when_the_sources_trims_are_not_carried_over(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    trim = {"rad": 0.025, "n_waypoints": 10, "waypoint_start": 105, "off_for_crowd_models": []}
+    a, b = _policy(tmp_path / "a", 0, steering_trim=trim), _policy(tmp_path / "b", 1)
+    assert cli_main(["train", "amp-average", str(a), str(b), "--out", str(tmp_path / "soup")]) == 0
+    err = capsys.readouterr().err
+    assert "no steering trim" in err and f"{a} has 0.025 rad" in err and str(b) not in err
+    assert "steering_trim" not in json.loads((tmp_path / "soup" / "config.json").read_text())
+    # untrimmed sources: nothing to say
+    assert cli_main(["train", "amp-average", str(b), str(b), "--out", str(tmp_path / "soup2")]) == 0
+    assert capsys.readouterr().err == ""
+
+
 def _fake_checkpoint(root: Path, hidden: list[int] | None = None) -> Path:
     from navzoo.agents.amp.checkpoint import save_checkpoint
 
