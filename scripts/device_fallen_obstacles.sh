@@ -42,7 +42,7 @@ one() {
 export -f one
 mkdir -p "$OUT/parts"
 timeout "${DEADLINE_S:-100000}" xargs -P "${P:-16}" -L 1 bash -c 'one "$@"' _ < "${JOBS:-docs/results/fallen_obstacles/jobs_protocol.txt}"
-[ $? = 124 ] && pkill -f scripts/amp_target_ablation.py && sleep 2  # runs still going at the deadline (no rows)
+[ $? = 124 ] && pkill -f -- "--out $OUT/parts/" && sleep 2  # this list's runs still going at the deadline (no rows)
 for c in $(cut -d" " -f1 "${JOBS:-docs/results/fallen_obstacles/jobs_protocol.txt}" | sort -u); do
   cat "$OUT"/parts/${c}_*.jsonl > "$OUT/${c}_fallen.jsonl"
 done

@@ -61,11 +61,11 @@ def test_set_adds_constants_to_every_run(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(shutil.which("xargs") is None or shutil.which("timeout") is None, reason="needs xargs and timeout")
-def test_policy_fills_the_policy_field_and_pack_keeps_the_parts_in_one_file(tmp_path: Path) -> None:
-    import sys
+def test_policy_fills_the_policy_field_and_pack_keeps_the_parts_in_one_file(tmp_path: Path,
+                                                                            monkeypatch: pytest.MonkeyPatch) -> None:
     import tarfile
 
-    sys.path.insert(0, str(ROOT / "scripts"))
+    monkeypatch.syspath_prepend(str(ROOT / "scripts"))
     from amp_target_ablation import parse_config
 
     policy = tmp_path / "pol"
@@ -85,3 +85,19 @@ def test_policy_fills_the_policy_field_and_pack_keeps_the_parts_in_one_file(tmp_
         assert cfg["set"] == {"SFM_SIDE_BIAS": 0.4, "SFM_SIDE_NARROW_REACH": 1.5}
         for key, value in crowd_fields.items():
             assert cfg[key] is value
+
+
+@pytest.mark.skipif(shutil.which("xargs") is None or shutil.which("timeout") is None or shutil.which("pkill") is None,
+                    reason="needs xargs, timeout and pkill")
+def test_deadline_stops_the_list_and_keeps_what_finished(tmp_path: Path) -> None:
+    # a fake python that finishes at once for seed 0 and hangs for seed 1, writing a row only when it finishes
+    fake = tmp_path / "fake_python"
+    fake.write_text('#!/bin/bash\nout=""; seed=""\nwhile [ $# -gt 0 ]; do case $1 in --out) out=$2;; --seeds) seed=$2;; esac; '
+                    'shift; done\nif [ "$seed" = 1 ]; then trap \'kill $!; touch "$out.stopped"; exit 1\' TERM; '
+                    'sleep 60 & wait; fi\necho \'{"seed": 0}\' > "$out"\n')
+    fake.chmod(0o755)
+    proc, _ = _run(tmp_path, "kdtx doorway 0\nkdtx doorway 1\n", PYTHON=str(fake), DEADLINE_S="3")
+    out = tmp_path / "out"
+    assert (out / "kdtx_fallen.jsonl").read_text() == '{"seed": 0}\n'
+    assert not (out / "parts" / "kdtx_doorway_1.jsonl").exists()
+    assert (out / "parts" / "kdtx_doorway_1.jsonl.stopped").exists()  # the run still going was stopped
