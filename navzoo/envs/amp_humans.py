@@ -771,9 +771,10 @@ class AmpHumans:
                                         sf_params.B_wall, sf_params.tau)
                 if walker == "sfm":
                     v_new = social_force(pos, vel, pref, o_pos, wall_rad)
-                    use = wall_stall.update(k * PLAN_DT, PLAN_DT, v_new, pref) if wall_stall is not None else None
-                    if use is not None and use.any():  # the rows of the same step with softer walls, exact as above
-                        v_new[use] = social_force(pos, vel, pref, o_pos, wall_rad, softer=True)[use]
+                    if wall_stall is not None:  # the held rows of the same step again, with softer walls
+                        use = wall_stall.update(k * PLAN_DT, PLAN_DT, v_new, pref)
+                        if use.any():
+                            v_new[use] = social_force(pos, vel, pref, o_pos, wall_rad, softer=True)[use]
                     vel = v_new
                 else:
                     v_new = orca_velocities(np.concatenate([pos, o_pos]), np.concatenate([vel, r_vel]),
