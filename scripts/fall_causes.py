@@ -18,7 +18,12 @@ skipped and counted, or with ``--counts`` taken for their fall counts alone). Pe
 - ``slid_m_median`` / ``slid_m_max`` (``--json``): how far the bodies slid after they were found fallen (rows since
   the FallLog records it);
 - successes per run in runs without falls and in runs with ``CASCADE_RUN`` falls or more: a fallen person makes no
-  more trips, so a cascade costs a run much of its successes.
+  more trips, so a cascade costs a run much of its successes;
+- how the bodies moved before the falls that nothing touched (cause ``none``; rows since 2026-12-07 carry the
+  motion keys of :class:`navzoo.benchmark.pedestrians.FallLog`): their median root speed, the share slower than
+  ``navzoo.benchmark.pedestrians.SLOW_MPS`` (0.3 m/s: standing or shuffling), the share whose target was that slow too, and the median yaw rate and lag
+  behind the target (``untouched_motion``; ``None`` without such falls), and those falls per person-minute spent
+  under and over that speed (``untouched_per_minute``, from the rows' ``slow_s`` and ``moving_s``).
 
 ``--paired-cpus`` instead compares two kinds of CPU (a run repeats trip for trip only on one kind): per configuration,
 the runs (scene, people, seed) that ran on both, their falls on each, and a paired sign-flip test of the difference
@@ -105,6 +110,7 @@ def summarize(rows: list[dict], within: float, near: float) -> dict:
     from navzoo.benchmark.pedestrians import fall_cause
 
     falls = [_falls(r) for r in rows]
+    timed = [r for r in rows if "slow_s" in r]
     events = [e for r in rows for e in r.get("fall_events", [])]
     causes = dict.fromkeys(CAUSES, 0)
     for e in events:
@@ -132,7 +138,46 @@ def summarize(rows: list[dict], within: float, near: float) -> dict:
         "success_per_run_no_falls": round(sum(r["success"] for r in calm) / len(calm), 1) if calm else None,
         f"success_per_run_{CASCADE_RUN}plus_falls": (round(sum(r["success"] for r in cascade) / len(cascade), 1)
                                                     if cascade else None),
+        "untouched_motion": untouched_motion([e for e in events if fall_cause(e, within) == "none"]),
+        "untouched_per_minute": untouched_per_minute(timed, within),
     }
+
+
+def untouched_per_minute(rows: list[dict], within: float) -> dict | None:
+    """Falls that nothing touched per person-minute while slow (under ``SLOW_MPS``) and while moving, over rows that
+    carry the time spent in each (``slow_s``, ``moving_s``; rows since 2026-12-07), with those times (``slow_min``,
+    ``moving_min``); ``None`` without such rows. A fall counts as slow by its mean speed 2.0 to 0.5 s before it was
+    detected (FallLog's ``speed_mps``), the time by the speed of each step."""
+    from navzoo.benchmark.pedestrians import SLOW_MPS, fall_cause
+
+    if not rows:
+        return None
+    ev = [e for r in rows for e in r["fall_events"] if fall_cause(e, within) == "none" and e.get("speed_mps") is not None]
+    slow_min, moving_min = sum(r["slow_s"] for r in rows) / 60, sum(r["moving_s"] for r in rows) / 60
+    n_slow = sum(e["speed_mps"] < SLOW_MPS for e in ev)
+    rate = lambda n, m: round(n / m, 3) if m > 0 else None  # noqa: E731
+    return {"slow": rate(n_slow, slow_min), "moving": rate(len(ev) - n_slow, moving_min),
+            "slow_min": round(slow_min, 1), "moving_min": round(moving_min, 1)}
+
+
+def untouched_motion(events: list[dict]) -> dict | None:
+    """How the bodies moved before falls (FallLog's motion keys): ``falls`` with those keys, the median root speed
+    (``speed_median``), the shares slower than ``SLOW_MPS`` (``slow_share``) and with a target slower than that
+    too (``slow_target_share``, of the falls with a target), the median yaw rate (``turn_median``) and lag behind
+    the target (``lag_median``). ``None`` when no event has the keys (rows before 2026-12-07)."""
+    from navzoo.benchmark.pedestrians import SLOW_MPS
+
+    ev = [e for e in events if e.get("speed_mps") is not None]
+    if not ev:
+        return None
+    speed = np.array([e["speed_mps"] for e in ev])
+    tgt = [e for e in ev if e.get("target_speed_mps") is not None]
+    med = lambda k, xs: round(float(np.median([e[k] for e in xs])), 2) if xs else None  # noqa: E731
+    return {"falls": len(ev), "speed_median": round(float(np.median(speed)), 2),
+            "slow_share": round(float((speed < SLOW_MPS).mean()), 2),
+            "slow_target_share": (round(sum(e["speed_mps"] < SLOW_MPS and e["target_speed_mps"] < SLOW_MPS
+                                            for e in tgt) / len(tgt), 2) if tgt else None),
+            "turn_median": med("turn_rad_s", ev), "lag_median": med("lag_m", tgt)}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -188,8 +233,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"| configuration | scene | runs | falls | in runs with {CASCADE_RUN}+ falls | "
               + " | ".join(f"cause: {c}" for c in CAUSES)
               + f" | within {a.near} m of a fallen body | tipped by a lying body: median time after the fall before "
-              f"(within {KNOCKED_S:g} s) | successes per run, no falls / {CASCADE_RUN}+ falls |")
-        print("|" + "---|" * (10 + len(CAUSES) - 1))
+              f"(within {KNOCKED_S:g} s) | successes per run, no falls / {CASCADE_RUN}+ falls "
+              "| untouched falls: median speed (m/s), share under 0.3 m/s (target too), median yaw rate (rad/s), lag (m) "
+              "| untouched falls per person-minute under / over 0.3 m/s (person-minutes) |")
+        print("|" + "---|" * (12 + len(CAUSES) - 1))
     for (config, crowd, cpu, scene), rs in sorted(groups.items()):
         s = summarize(rs, within, a.near)
         if a.json:
@@ -201,8 +248,20 @@ def main(argv: list[str] | None = None) -> int:
               + " | ".join(str(s["causes"][c]) for c in CAUSES)
               + f" | {s['near_fallen']} | {s['fallen_body_after_s']} s ({s[f'fallen_body_within_{KNOCKED_S:g}s']}) "
               f"| {s['success_per_run_no_falls']} / "
-              f"{s[f'success_per_run_{CASCADE_RUN}plus_falls']} |")
+              f"{s[f'success_per_run_{CASCADE_RUN}plus_falls']} | {_motion_cell(s['untouched_motion'])} | {_rate_cell(s['untouched_per_minute'])} |")
     return 0
+
+
+def _motion_cell(m: dict | None) -> str:
+    if m is None:
+        return "-"
+    slow_target = "-" if m["slow_target_share"] is None else f"{100 * m['slow_target_share']:.0f} %"
+    return (f"{m['speed_median']}, {100 * m['slow_share']:.0f} % ({slow_target}), {m['turn_median']}, "
+            f"{m['lag_median']} ({m['falls']} falls)")
+
+
+def _rate_cell(m: dict | None) -> str:
+    return "-" if m is None else f"{m['slow']} / {m['moving']} ({m['slow_min']} / {m['moving_min']})"
 
 
 if __name__ == "__main__":

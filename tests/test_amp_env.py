@@ -140,6 +140,7 @@ def test_fall_log_tells_a_fallen_body_from_a_standing_person():
     # pushed over in the open, 3 m from the other person: nothing touched it
     assert first["id"] == 0 and first["fallen_m"] is None and first["person_m"] > 2.0
     assert pedestrians.fall_cause(first) == "none"
+    assert first["speed_mps"] > 0.3 and first["target_speed_mps"] is None  # it was shoved before it fell; no targets given
     # the other person is put down on the fallen body: it touches a body that fell, not a standing person
     root = env.amp.state()["root_pos"][0]
     body = env.amp.ids[1]
@@ -156,6 +157,40 @@ def test_fall_log_tells_a_fallen_body_from_a_standing_person():
     log.finish()
     assert first["slid_m"] > 0.4  # pushed hard: found fallen while it still slid on
     env.close()
+
+
+def test_fall_log_keeps_the_motion_before_a_fall():
+    from types import SimpleNamespace
+
+    dt = 0.1
+    env = SimpleNamespace(n_humans=2, n_robots=1, n_total=3, config=SimpleNamespace(dt=dt), sim_time=0.0,
+                          amp=SimpleNamespace(ids=[5, 6], touched=[set(), set()]),
+                          pos=np.zeros((3, 2)), vel=np.zeros((3, 2)), omega=np.zeros(3))
+    log = pedestrians.FallLog(env)
+    none = {"speed_mps": None, "turn_rad_s": None, "target_speed_mps": None, "lag_m": None}
+    for k in range(40):
+        env.sim_time = k * dt
+        env.pos[1] = [1.0 * k * dt, 0.0]  # person 0 walks at 1 m/s ...
+        env.vel[1] = [1.0, 0.0] if k < 30 else [0.0, 0.0]  # ... and stops for its last second
+        env.pos[2] = [5.0, 5.0]  # person 1 turns on the spot
+        env.vel[2] = [0.0, 0.2]
+        env.omega[2] = -0.5
+        target = np.array([[env.pos[1, 0] + 0.5, 0.0], [5.0, 6.0]])  # 0.5 m ahead of person 0; person 1's stays
+        log.update(np.zeros(2, dtype=bool), np.zeros(2, dtype=bool), target)
+        if k == 5:  # within 0.5 s of the start there is no window before
+            assert log._motion_before(0) == none
+    # the window is 2.0 to 0.5 s before now (steps 19-34): 11 steps at 1 m/s, 5 standing
+    m0 = log._motion_before(0)
+    assert m0["speed_mps"] == pytest.approx(11 / 16, abs=1e-3) and m0["turn_rad_s"] == 0.0
+    assert m0["target_speed_mps"] == pytest.approx(1.0) and m0["lag_m"] == pytest.approx(0.5)
+    m1 = log._motion_before(1)
+    assert m1 == {"speed_mps": pytest.approx(0.2), "turn_rad_s": pytest.approx(0.5), "target_speed_mps": 0.0,
+                  "lag_m": pytest.approx(1.0)}
+    bare = pedestrians.FallLog(env)  # a run without target points
+    for _ in range(20):
+        bare.update(np.zeros(2, dtype=bool), np.zeros(2, dtype=bool))
+    assert bare._motion_before(0)["target_speed_mps"] is None and bare._motion_before(0)["lag_m"] is None
+    assert bare._motion_before(1)["speed_mps"] == pytest.approx(0.2)
 
 
 def test_fall_cause_takes_the_last_touch_within_its_window():

@@ -54,6 +54,27 @@ def test_cascades_and_causes(tmp_path, capsys):
     assert only["runs"] == 1 and only["falls"] == 1
 
 
+def test_untouched_falls_by_speed(tmp_path, capsys):
+    def ev(t, speed, target, wall=None):
+        return _event(t, wall=wall) | {"speed_mps": speed, "turn_rad_s": 0.2, "target_speed_mps": target, "lag_m": 0.3}
+
+    rows = [_row(0, "lobby", 10, [ev(5, 0.1, 0.05), ev(9, 0.2, 0.9), ev(12, 1.1, 1.0), ev(20, 0.1, 0.1, wall=0.2)])
+            | {"slow_s": 120.0, "moving_s": 600.0},
+            _row(1, "lobby", 12, [_event(3)]) | {"slow_s": 60.0, "moving_s": 60.0}]  # an event without motion keys
+    s = fc.summarize(rows, within=1.5, near=0.5)
+    m = s["untouched_motion"]  # the wall-tipped fall and the one without motion keys are left out
+    assert m["falls"] == 3 and m["speed_median"] == 0.2 and m["slow_share"] == pytest.approx(0.67)
+    assert m["slow_target_share"] == pytest.approx(0.33) and m["turn_median"] == 0.2 and m["lag_median"] == 0.3
+    # 2 slow untouched falls in 3 slow person-minutes, 1 in 11 moving ones
+    assert s["untouched_per_minute"] == {"slow": pytest.approx(0.667), "moving": pytest.approx(0.091),
+                                         "slow_min": 3.0, "moving_min": 11.0}
+    assert fc.summarize([_row(2, "home", 1, [_event(4)])], 1.5, 0.5)["untouched_motion"] is None  # older rows
+    f = tmp_path / "runs.jsonl"
+    f.write_text("\n".join(json.dumps(r) for r in rows) + "\n")
+    assert fc.main([str(f)]) == 0
+    assert "0.2, 67 % (33 %), 0.2, 0.3 (3 falls) | 0.667 / 0.091 (3.0 / 11.0)" in capsys.readouterr().out
+
+
 def test_bad_input_is_named(tmp_path, capsys):
     f = tmp_path / "bad.jsonl"
     f.write_text("{not json\n")

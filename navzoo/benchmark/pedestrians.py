@@ -32,6 +32,7 @@ import argparse
 import json
 import sys
 import time
+from collections import deque
 from pathlib import Path
 from typing import Any
 
@@ -347,7 +348,6 @@ def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str
         live = ~done
         if amp:
             map_now, agent_now, fallen = env.human_map_contact, env.human_agent_contact, env.human_fallen
-            falls.update(map_now, fallen)
         else:
             (map_now, agent_now), fallen = kinematic_contacts(env), np.zeros(n, dtype=bool)
         m_flag |= map_now & live
@@ -358,6 +358,8 @@ def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str
         contact_steps += (int((map_now & standing).sum()), int((agent_now & standing).sum()), int(standing.sum()))
         walk.append(np.where(fallen[:, None], np.nan, env.pos[h]))
         target = target_points(env) if has_target else None
+        if falls is not None:
+            falls.update(map_now, fallen, target)
         err = None
         if target is not None:
             err = np.linalg.norm(env.pos[h] - target, axis=1)
@@ -392,6 +394,7 @@ def _follow_scene(scene: str, n: int, seconds: float, seed: int, policy_dir: str
         "err_sum": err_sum, "err_n": err_n, "path_error": has_target, "running": int((~done).sum()),
         "by_goal": by_goal, "walk_collisions": list(walk_hits), "contact_steps": [int(c) for c in contact_steps],
         "wall_s": round(time.time() - t0, 1), "fall_events": falls.events if falls is not None else [],
+        **({"slow_s": round(falls.slow_s, 1), "moving_s": round(falls.moving_s, 1)} if falls is not None else {}),
         "poses": np.concatenate(poses) if poses else np.zeros((0, realism.POSE_DIM)),
         "walk_kin": walk_kin,
     }
@@ -406,7 +409,15 @@ class FallLog:
     person (``person_m``). Times since are ``None`` when it never happened in the run; ``fallen_m`` is ``None``
     when nobody had fallen. :meth:`finish` adds ``slid_m``, how far the root lies at the end of the run from where
     the fall was detected. A fall is detected when the body is already down (``AmpBodies.fallen``), about half a
-    second after what tipped it, so a touch ``FALL_CAUSE_S`` before counts (:func:`fall_cause`)."""
+    second after what tipped it, so a touch ``FALL_CAUSE_S`` before counts (:func:`fall_cause`).
+
+    How the body moved before it fell, over the window ``MOTION_WINDOW_S`` (from 2.0 to 0.5 s before the fall was
+    detected; ``None`` for a fall within 0.5 s of the run's start): ``speed_mps``, the mean planar speed of its
+    root; ``turn_rad_s``, the mean absolute yaw rate; ``target_speed_mps``, the mean speed of its target point
+    (:func:`target_points`; ``None`` without targets); and ``lag_m``, how far the target point was from the body
+    at the window's end. A body that falls while slow, with a slow target, fell while standing or shuffling, not
+    while walking. ``slow_s`` and ``moving_s`` add up the person-seconds of the bodies still up, slower than
+    ``SLOW_MPS`` and not, so falls per minute can be set against the time spent in each (``scripts/fall_causes.py``)."""
 
     def __init__(self, env) -> None:
         self.env = env
@@ -417,10 +428,24 @@ class FallLog:
         self.last_fallen = np.full(n, -np.inf)
         self.prev = np.zeros(n, dtype=bool)
         self.events: list[dict[str, Any]] = []
+        self.h = np.arange(env.n_robots, env.n_total)
+        dt = float(env.config.dt)
+        self.lead = int(round(MOTION_WINDOW_S[1] / dt))  # steps from the window's end to the detection
+        # the last steps' (speed (H,), |yaw rate| (H,), position (H, 2), target (H, 2) or None), newest last
+        self.motion: deque = deque(maxlen=int(round(MOTION_WINDOW_S[0] / dt)) + 1)
+        self.slow_s = self.moving_s = 0.0
 
-    def update(self, map_now: np.ndarray, fallen: np.ndarray) -> None:
-        """After an env step: ``map_now`` (H,) touching a wall or an obstacle, ``fallen`` (H,) down (the env's)."""
+    def update(self, map_now: np.ndarray, fallen: np.ndarray, target: np.ndarray | None = None) -> None:
+        """After an env step: ``map_now`` (H,) touching a wall or an obstacle, ``fallen`` (H,) down (the env's),
+        ``target`` (H, 2) the pedestrians' target points now (:func:`target_points`), or None where there are none."""
         env, t = self.env, float(self.env.sim_time)
+        speed = np.linalg.norm(env.vel[self.h], axis=1)
+        self.motion.append((speed, np.abs(env.omega[self.h]), env.pos[self.h].copy(),
+                            None if target is None else np.asarray(target, dtype=np.float64).copy()))
+        up = ~fallen
+        n_slow = int((up & (speed < SLOW_MPS)).sum())
+        self.slow_s += n_slow * float(env.config.dt)
+        self.moving_s += (int(up.sum()) - n_slow) * float(env.config.dt)
         # a fallen body is "a human" to env.amp.contacts(): tell its touches (fallen before this step) from the others
         touched = env.amp.touched
         down = {b for b, k in self.index.items() if self.prev[k]}
@@ -445,8 +470,26 @@ class FallLog:
                        for k, v in (("agent", self.last_agent), ("map", self.last_map), ("fallen", self.last_fallen))},
                     "fallen_m": None if fallen_m is None else round(fallen_m, 3),
                     "person_m": None if person_m is None else round(person_m, 3),
+                    **self._motion_before(int(j)),
                 })
         self.prev = fallen.copy()
+
+    def _motion_before(self, j: int) -> dict[str, float | None]:
+        """Person ``j``'s motion over ``MOTION_WINDOW_S`` before now (the keys of the class docstring)."""
+        window = list(self.motion)[:len(self.motion) - self.lead]
+        if len(window) < 2:
+            return dict.fromkeys(("speed_mps", "turn_rad_s", "target_speed_mps", "lag_m"))
+        dt = float(self.env.config.dt)
+        targets = [w[3] for w in window]
+        if any(x is None for x in targets):
+            target_speed = lag = None
+        else:
+            tj = np.array([x[j] for x in targets])
+            target_speed = round(float(np.linalg.norm(np.diff(tj, axis=0), axis=1).mean() / dt), 3)
+            lag = round(float(np.linalg.norm(tj[-1] - window[-1][2][j])), 3)
+        return {"speed_mps": round(float(np.mean([w[0][j] for w in window])), 3),
+                "turn_rad_s": round(float(np.mean([w[1][j] for w in window])), 3),
+                "target_speed_mps": target_speed, "lag_m": lag}
 
     def finish(self) -> None:
         """At the end of the run: how far each fallen body's root lies from where its fall was detected
@@ -459,6 +502,8 @@ class FallLog:
 
 
 FALL_CAUSE_S = 1.5
+MOTION_WINDOW_S = (2.0, 0.5)  # s before a fall's detection: the window of FallLog's motion keys
+SLOW_MPS = 0.3  # m/s: slower than this a body stands or shuffles (the clips hold 2 % of their frames below it)
 
 
 def fall_cause(event: dict[str, Any], within: float = FALL_CAUSE_S) -> str:
