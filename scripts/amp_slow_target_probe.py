@@ -48,7 +48,8 @@ def probe(speed: float, bearing_deg: float, seconds: float = 12.0, seed: int = 0
     u = np.array([np.cos(yaw), np.sin(yaw)])
     tau = np.arange(amp.path_len) / AH.CONTROL_HZ
 
-    def plan_all() -> None:  # the body's own position, then straight on at `speed`
+    def plan_all(who: np.ndarray | None = None) -> None:  # the body's own position, then straight on at `speed`
+        del who  # one body: every replan (timed, or an event the env passes on) is its own
         pos = amp.planar()[0]
         amp.paths = pos[:, None, :] + (speed * tau)[None, :, None] * u[None, None, :]
         amp.plan_t[:] = amp.t

@@ -130,6 +130,14 @@ def test_slow_target_probe_writes_its_rows(tmp_path):
         probe.main(["--speeds", "0", "--bearings", "0"])
 
 
+def test_slow_target_probe_takes_the_replans_the_env_asks_for():
+    # 12 m straight on at 1 m/s: the body passes its scene goal and the env asks for an event replan of that
+    # person (plan_all(who)), which the probe's own plan_all once refused (TypeError)
+    probe = load_script("amp_slow_target_probe")
+    row = probe.probe(1.0, 0.0, seconds=12.0, seed=0)
+    assert row["along_m"] > 8.0 and not row["fell"]
+
+
 def test_slow_target_probe_pools_files_per_speed_and_bearing(tmp_path):
     probe = load_script("amp_slow_target_probe")
 
