@@ -138,6 +138,22 @@ def test_slow_target_probe_takes_the_replans_the_env_asks_for():
     assert row["along_m"] > 8.0 and not row["fell"]
 
 
+def test_stop_turn_go_probe_counts_from_the_set_off(tmp_path):
+    probe = load_script("amp_slow_target_probe")
+    out = tmp_path / "stg.json"
+    assert probe.main(["--speeds", "1.0", "--bearings", "90", "--seconds", "3", "--lead-in", "1.5", "--pause", "1",
+                       "--json", str(out)]) == 0
+    (row,) = json.loads(out.read_text())["rows"]
+    assert row["lead_in_s"] == 1.5 and row["pause_s"] == 1.0 and row["lead_speed"] == 1.0
+    assert not row["fell"] and row["fell_at_s"] is None
+    # 3 s after turning 90 degrees off the lead-in: it went some way sideways, no more than the target did
+    assert 0.5 < row["along_m"] < 3.5 and row["heading_error_deg"] < 60
+    with pytest.raises(SystemExit, match="lead-in"):
+        probe.main(["--speeds", "1.0", "--bearings", "0", "--pause", "-1"])
+    with pytest.raises(ValueError, match="lead"):
+        probe.probe(1.0, 0.0, seconds=1.0, lead_in=1.0, lead_speed=0.0)
+
+
 def test_slow_target_probe_pools_files_per_speed_and_bearing(tmp_path):
     probe = load_script("amp_slow_target_probe")
 
