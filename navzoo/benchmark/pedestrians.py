@@ -414,7 +414,7 @@ class FallLog:
     How the body moved before it fell, over the window ``MOTION_WINDOW_S`` (from 2.0 to 0.5 s before the fall was
     detected; ``None`` for a fall within 0.5 s of the run's start): ``speed_mps``, the mean planar speed of its
     root; ``turn_rad_s``, the mean absolute yaw rate; ``target_speed_mps``, the mean speed of its target point
-    (:func:`target_points`; ``None`` without targets); and ``lag_m``, how far the target point was from the body
+    (:func:`target_points`, jumps at replans included; ``None`` without targets); and ``lag_m``, how far the target point was from the body
     at the window's end. A body that falls while slow, with a slow target, fell while standing or shuffling, not
     while walking. ``slow_s`` and ``moving_s`` add up the person-seconds of the bodies still up, slower than
     ``SLOW_MPS`` and not, so falls per minute can be set against the time spent in each (``scripts/fall_causes.py``)."""
