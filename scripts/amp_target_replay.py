@@ -1,6 +1,6 @@
 """Do a crowd's target trajectories alone fell a physics pedestrian? Record them in a crowd, replay them to a lone body.
 
-    python scripts/amp_target_replay.py --scene lobby:15 --seed 0 [--policy DIR] [--seconds 200] [--json F]
+    python scripts/amp_target_replay.py --scene lobby:15 --seed 0 [--policy DIR] [--replay-policy DIR] [--seconds 200] [--json F]
 
 **Record.** One run of the following protocol's scene (social-force targets, today's defaults, as
 ``scripts/amp_target_ablation.py`` runs it) with the AMP policy ``--policy``. Every time a person's target path or its
@@ -12,7 +12,8 @@ logged with their causes (:class:`navzoo.benchmark.pedestrians.FallLog`).
 ``scripts/amp_slow_target_probe.py``) walks the same target paths: at each recorded step its path becomes the recorded
 relative path, turned by the difference of the two bodies' first headings, added to its own position. It runs for as
 long as the recorded person was up (to its fall, or the run's end), and the env's own planner is switched off. The
-lone body meets no people and no walls, so the replay keeps what the crowd's targets ask of a body (their speeds,
+lone bodies run ``--replay-policy`` (default: the recording's policy), so one crowd's targets can be walked by
+another controller. The lone body meets no people and no walls, so the replay keeps what the crowd's targets ask of a body (their speeds,
 stops, turns, jitter between replans) and leaves out the people and the room.
 
 The printout sets the falls per person-minute in the crowd (all causes, and those nothing touched within
@@ -104,12 +105,16 @@ def replay(updates: list[tuple], heading0: float, up_s: float, seed: int, policy
     return {"replay_fell": fell_at is not None, "replay_fell_at_s": fell_at, "replay_walked_m": round(walked, 2)}
 
 
-def run_scene(scene: str, n: int, seed: int, seconds: float, policy_dir: str | None) -> list[dict]:
+def run_scene(scene: str, n: int, seed: int, seconds: float, policy_dir: str | None,
+              replay_dir: str | None = None) -> list[dict]:
+    """Record ``scene`` with ``policy_dir`` and replay each person to a lone body of ``replay_dir`` (default the same)."""
     rec = record(scene, n, seed, seconds, policy_dir)
+    lone = policy_dir if replay_dir is None else replay_dir
     rows = []
     for j in range(n):
-        r = replay(rec["updates"][j], float(rec["heading0"][j]), float(rec["up_s"][j]), seed, policy_dir)
-        rows.append({"scene": scene, "pedestrians": n, "seed": seed, "policy": policy_dir, "person": j,
+        r = replay(rec["updates"][j], float(rec["heading0"][j]), float(rec["up_s"][j]), seed, lone)
+        rows.append({"scene": scene, "pedestrians": n, "seed": seed, "policy": policy_dir, "replay_policy": lone,
+                     "person": j,
                      "up_s": round(float(rec["up_s"][j]), 2), "updates": len(rec["updates"][j]),
                      "crowd_fell": rec["fell"][j], "crowd_cause": rec["cause"][j],
                      "crowd_walked_m": round(float(rec["walked_m"][j]), 2), **r})
@@ -139,6 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--seconds", type=float, default=200.0)
     ap.add_argument("--policy", default=None, help="exported AMP policy folder (default: the shipped one)")
+    ap.add_argument("--replay-policy", default=None, help="policy of the lone bodies (default: --policy)")
     ap.add_argument("--json", default=None, help="also write one row per person here")
     a = ap.parse_args(argv)
     scenes = []
@@ -153,15 +159,16 @@ def main(argv: list[str] | None = None) -> int:
         scenes.append((name, n))
     if a.seconds <= 0:
         ap.error("--seconds must be positive")
-    if a.policy is not None and not Path(a.policy).is_dir():
-        ap.error(f"--policy {a.policy}: not a folder")
+    for flag, value in (("--policy", a.policy), ("--replay-policy", a.replay_policy)):
+        if value is not None and not Path(value).is_dir():
+            ap.error(f"{flag} {value}: not a folder")
     from navzoo.torch_threads import one_torch_thread
 
     rows: list[dict] = []
     with one_torch_thread():
         for name, n in scenes:
             try:
-                got = run_scene(name, n, a.seed, a.seconds, a.policy)
+                got = run_scene(name, n, a.seed, a.seconds, a.policy, a.replay_policy)
             except (KeyError, ValueError) as e:
                 ap.error(f"--scene {name}: {e}")
             s = summary(got)

@@ -13,7 +13,7 @@ def test_replay_walks_the_recorded_targets_alone(tmp_path, capsys):
     out = tmp_path / "replay.json"
     assert rp.main(["--scene", "square_crossing:2", "--seconds", "6", "--json", str(out)]) == 0
     data = json.loads(out.read_text())
-    assert [r["person"] for r in data["rows"]] == [0, 1]
+    assert [r["person"] for r in data["rows"]] == [0, 1] and data["rows"][0]["replay_policy"] is None
     for r in data["rows"]:
         assert r["up_s"] == pytest.approx(6.0, abs=0.05) and not r["crowd_fell"] and not r["replay_fell"]
         assert r["updates"] >= 3  # the start's plan and the replans every 2 s
@@ -42,7 +42,8 @@ def test_summary_counts_falls_per_person_minute():
 def test_bad_input_is_named(capsys):
     for argv, msg in ((["--scene", "lobby"], "SCENE:N"), (["--scene", "lobby:0"], "at least 1"),
                       (["--scene", "lobby:3", "--seconds", "0"], "positive"),
-                      (["--scene", "lobby:3", "--policy", "/nonexistent"], "not a folder")):
+                      (["--scene", "lobby:3", "--policy", "/nonexistent"], "not a folder"),
+                      (["--scene", "lobby:3", "--replay-policy", "/nonexistent"], "--replay-policy")):
         with pytest.raises(SystemExit):
             rp.main(argv)
         assert msg in capsys.readouterr().err
