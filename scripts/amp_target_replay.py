@@ -1,6 +1,7 @@
 """Do a crowd's target trajectories alone fell a physics pedestrian? Record them in a crowd, replay them to a lone body.
 
     python scripts/amp_target_replay.py --scene lobby:15 --seed 0 [--policy DIR] [--replay-policy DIR] [--seconds 200] [--json F]
+        [--save-targets F.npz] [--no-replay]
 
 **Record.** One run of the following protocol's scene (social-force targets, today's defaults, as
 ``scripts/amp_target_ablation.py`` runs it) with the AMP policy ``--policy``. Every time a person's target path or its
@@ -15,6 +16,10 @@ long as the recorded person was up (to its fall, or the run's end), and the env'
 lone bodies run ``--replay-policy`` (default: the recording's policy), so one crowd's targets can be walked by
 another controller. The lone body meets no people and no walls, so the replay keeps what the crowd's targets ask of a body (their speeds,
 stops, turns, jitter between replans) and leaves out the people and the room.
+
+``--save-targets F.npz`` also writes the recorded target updates of every person, in the format that
+``navzoo train amp --recorded-targets F.npz`` trains on (:func:`navzoo.agents.amp.path_env.load_recorded_targets`);
+``--no-replay`` records only.
 
 The printout sets the falls per person-minute in the crowd (all causes, and those nothing touched within
 ``FALL_CAUSE_S``) against the replays', and the distance the bodies walked in each (a replay that walks about as far
@@ -42,13 +47,13 @@ def record(scene: str, n: int, seed: int, seconds: float, policy_dir: str | None
     last = [None] * n
 
     def keep() -> None:
-        pos = amp.planar()[0]
+        pos, hd = amp.planar()[:2]
         for j in range(n):
             key = (int(amp.plan_t[j]), amp.paths[j].tobytes())
             if key != last[j]:
                 last[j] = key
                 updates[j].append((int(amp.t), int(amp.plan_t[j]), int(amp.k_prog[j]),
-                                   (amp.paths[j] - pos[j]).astype(np.float32)))
+                                   (amp.paths[j] - pos[j]).astype(np.float32), float(hd[j])))
 
     heading0 = amp.planar()[1].copy()
     keep()
@@ -89,7 +94,7 @@ def replay(updates: list[tuple], heading0: float, up_s: float, seed: int, policy
     prev = amp.planar()[0][0].copy()
     while env.sim_time < up_s - 1e-9 and not env._needs_reset:
         while k < len(queue) and queue[k][0] <= int(amp.t) - t0:
-            step, plan_t, k_prog, rel = queue[k]
+            step, plan_t, k_prog, rel = queue[k][:4]
             amp.paths[0] = amp.planar()[0][0] + rel @ rot.T
             amp.plan_t[0] = t0 + plan_t
             amp.k_prog[0] = k_prog
@@ -105,13 +110,33 @@ def replay(updates: list[tuple], heading0: float, up_s: float, seed: int, policy
     return {"replay_fell": fell_at is not None, "replay_fell_at_s": fell_at, "replay_walked_m": round(walked, 2)}
 
 
+def save_targets(path: str, recordings: list[dict]) -> int:
+    """Write the target updates of every person of ``recordings`` (:func:`record`'s) to ``path`` (an .npz of plain
+    arrays, :func:`navzoo.agents.amp.path_env.load_recorded_targets`); returns the number of people."""
+    people = [(rec["updates"][j], int(round(rec["up_s"][j] / rec["dt"]))) for rec in recordings
+              for j in range(len(rec["updates"])) if rec["updates"][j]]
+    ups = [u for upd, _ in people for u in upd]
+    np.savez_compressed(
+        path, person_start=np.cumsum([0] + [len(upd) for upd, _ in people]).astype(np.int64),
+        up_steps=np.array([n for _, n in people], dtype=np.int64),
+        step=np.array([u[0] for u in ups], dtype=np.int64), plan_t=np.array([u[1] for u in ups], dtype=np.int64),
+        heading=np.array([u[4] for u in ups], dtype=np.float32), paths=np.stack([u[3] for u in ups]),
+        dt=np.float64(recordings[0]["dt"]))
+    return len(people)
+
+
 def run_scene(scene: str, n: int, seed: int, seconds: float, policy_dir: str | None,
-              replay_dir: str | None = None) -> list[dict]:
-    """Record ``scene`` with ``policy_dir`` and replay each person to a lone body of ``replay_dir`` (default the same)."""
+              replay_dir: str | None = None, recordings: list | None = None, do_replay: bool = True) -> list[dict]:
+    """Record ``scene`` with ``policy_dir`` and replay each person to a lone body of ``replay_dir`` (default the same);
+    the recording is appended to ``recordings`` when given; ``do_replay=False`` records only (rows without replays)."""
     rec = record(scene, n, seed, seconds, policy_dir)
+    if recordings is not None:
+        recordings.append(rec)
     lone = policy_dir if replay_dir is None else replay_dir
     rows = []
     for j in range(n):
+        if not do_replay:
+            continue
         r = replay(rec["updates"][j], float(rec["heading0"][j]), float(rec["up_s"][j]), seed, lone)
         rows.append({"scene": scene, "pedestrians": n, "seed": seed, "policy": policy_dir, "replay_policy": lone,
                      "person": j,
@@ -146,6 +171,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--policy", default=None, help="exported AMP policy folder (default: the shipped one)")
     ap.add_argument("--replay-policy", default=None, help="policy of the lone bodies (default: --policy)")
     ap.add_argument("--json", default=None, help="also write one row per person here")
+    ap.add_argument("--save-targets", default=None, metavar="F.npz",
+                    help="also write every person's recorded target updates here (navzoo train amp --recorded-targets)")
+    ap.add_argument("--no-replay", action="store_true", help="record only (with --save-targets)")
     a = ap.parse_args(argv)
     scenes = []
     for text in a.scene:
@@ -164,16 +192,25 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"{flag} {value}: not a folder")
     from navzoo.torch_threads import one_torch_thread
 
+    if a.no_replay and not a.save_targets:
+        ap.error("--no-replay records only: give --save-targets F.npz")
     rows: list[dict] = []
+    recordings: list[dict] = []
     with one_torch_thread():
         for name, n in scenes:
             try:
-                got = run_scene(name, n, a.seed, a.seconds, a.policy, a.replay_policy)
+                got = run_scene(name, n, a.seed, a.seconds, a.policy, a.replay_policy, recordings, not a.no_replay)
             except (KeyError, ValueError) as e:
                 ap.error(f"--scene {name}: {e}")
-            s = summary(got)
-            print(f"{name} ({n} people, seed {a.seed}): {json.dumps(s)}", flush=True)
+            if got:
+                print(f"{name} ({n} people, seed {a.seed}): {json.dumps(summary(got))}", flush=True)
             rows += got
+    if a.save_targets:
+        Path(a.save_targets).parent.mkdir(parents=True, exist_ok=True)
+        people = save_targets(a.save_targets, recordings)
+        print(f"saved the target updates of {people} people to {a.save_targets}")
+    if not rows:
+        return 0
     total = summary(rows)
     print(f"all: {json.dumps(total)}")
     if a.json:

@@ -2,6 +2,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from tests.script_modules import load_script
@@ -47,3 +48,24 @@ def test_bad_input_is_named(capsys):
         with pytest.raises(SystemExit):
             rp.main(argv)
         assert msg in capsys.readouterr().err
+
+
+def test_saved_targets_are_what_the_path_task_trains_on(tmp_path, capsys):
+    from navzoo.agents.amp.path_env import AmpPathEnv, PathTaskConfig, load_recorded_targets
+    from navzoo.agents.amp.train import locomotion_reference
+
+    f = tmp_path / "targets.npz"
+    assert rp.main(["--scene", "square_crossing:2", "--seconds", "5", "--save-targets", str(f), "--no-replay"]) == 0
+    assert "saved the target updates of 2 people" in capsys.readouterr().out
+    rec = load_recorded_targets(str(f))
+    assert len(rec.up_steps) == 2 and (rec.up_steps == 150).all() and rec.step[0] == 0
+    env = AmpPathEnv(2, locomotion_reference(), PathTaskConfig(episode_seconds=2.0, recorded_targets=str(f),
+                                                               recorded_prob=1.0), seed=0)
+    env.reset(seed=0)
+    for _ in range(70):  # past the recordings' first replan, 2 s in, and an episode's end
+        obs, rew, term, trunc, _ = env.step(np.zeros((2, env.act_dim)))
+        assert np.isfinite(obs).all() and np.isfinite(rew).all()
+    env.close()
+    with pytest.raises(SystemExit):
+        rp.main(["--scene", "square_crossing:2", "--no-replay"])
+    assert "--save-targets" in capsys.readouterr().err

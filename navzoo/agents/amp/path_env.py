@@ -115,6 +115,14 @@ class PathTaskConfig:
     door_prob: float = 0.0
     door_width: tuple[float, float] = (0.85, 1.2)
     door_approach: float = 0.7
+    # recorded crowd targets (any stage): with probability recorded_prob an episode's target paths are those one
+    # person was given in a navzoo crowd (an .npz of scripts/amp_target_replay.py --save-targets, read by
+    # load_recorded_targets), from a random point of the recording: each recorded update is turned by the
+    # body's heading against the recorded body's and anchored at the body when it comes; such an episode gets no
+    # generated replans. The crowd's target paths fell controllers that walk generated paths well
+    # (docs/pedestrians_log.md, "The stance run without its term, and why its bodies fall")
+    recorded_targets: str | None = None
+    recorded_prob: float = 0.0
 
     def __post_init__(self) -> None:
         if self.stage not in (1, 2, 3):
@@ -137,12 +145,66 @@ class PathTaskConfig:
         w = self.stance_reward
         if isinstance(w, bool) or not isinstance(w, int | float) or not np.isfinite(w) or w < 0:
             raise ValueError(f"PathTaskConfig.stance_reward must be a finite number >= 0, got {w!r}")
+        q = self.recorded_prob
+        if isinstance(q, bool) or not isinstance(q, int | float) or not 0.0 <= q <= 1.0:
+            raise ValueError(f"PathTaskConfig.recorded_prob must lie in [0, 1], got {q!r}")
+        if q > 0 and not self.recorded_targets:
+            raise ValueError(f"PathTaskConfig.recorded_prob {q} needs recorded_targets (an .npz of "
+                             "scripts/amp_target_replay.py --save-targets)")
         span = self.amp_velocity_span
         if isinstance(span, bool) or not isinstance(span, int | np.integer) or span < 1:
             raise ValueError(f"PathTaskConfig.amp_velocity_span must be an integer >= 1, got {span!r}")
         if span != 1 and self.amp_velocity != "finite_difference":
             raise ValueError(f"PathTaskConfig.amp_velocity_span {span} needs amp_velocity='finite_difference', "
                              f"got {self.amp_velocity!r}")
+
+
+@dataclass(frozen=True)
+class RecordedTargets:
+    """Target paths given to people in navzoo crowds (``scripts/amp_target_replay.py --save-targets``): per person
+    ``p`` its updates ``person_start[p]:person_start[p + 1]``, each at control step ``step`` of the recording, with the
+    step its path starts at (``plan_t``), the body's heading then (``heading``, rad) and the path itself relative to
+    where the body stood (``paths``, (U, L, 2)); ``up_steps``, how long each person was up."""
+
+    person_start: np.ndarray
+    up_steps: np.ndarray
+    step: np.ndarray
+    plan_t: np.ndarray
+    heading: np.ndarray
+    paths: np.ndarray
+
+
+def load_recorded_targets(path: str, control_hz: int = 30) -> RecordedTargets:
+    """Read and check recorded target updates (plain arrays only, no pickles); a ValueError names the problem."""
+    try:
+        with np.load(path, allow_pickle=False) as d:
+            arrays = {k: d[k] for k in d.files}
+    except (OSError, ValueError) as e:
+        raise ValueError(f"recorded targets {path}: cannot read them ({e})") from None
+    need = ("person_start", "up_steps", "step", "plan_t", "heading", "paths", "dt")
+    missing = [k for k in need if k not in arrays]
+    if missing:
+        raise ValueError(f"recorded targets {path}: missing {missing} (write them with scripts/amp_target_replay.py "
+                         "--save-targets)")
+    start, paths = arrays["person_start"], arrays["paths"]
+    u = len(arrays["step"])
+    bad = None
+    if start.ndim != 1 or len(start) < 2 or start[0] != 0 or start[-1] != u or np.any(np.diff(start) < 1):
+        bad = "person_start must run from 0 to the number of updates, every person with at least one update"
+    elif len(arrays["up_steps"]) != len(start) - 1:
+        bad = "up_steps needs one entry per person"
+    elif any(len(arrays[k]) != u for k in ("plan_t", "heading")) or paths.ndim != 3 or paths.shape[0] != u \
+            or paths.shape[2] != 2:
+        bad = "step, plan_t, heading and paths (U, L, 2) need one entry per update"
+    elif not (np.isfinite(paths).all() and np.isfinite(arrays["heading"]).all()):
+        bad = "paths and headings must be finite"
+    elif abs(float(arrays["dt"]) * control_hz - 1.0) > 1e-6:
+        bad = f"recorded at dt {float(arrays['dt'])} s, not the task's 1/{control_hz} s"
+    if bad:
+        raise ValueError(f"recorded targets {path}: {bad}")
+    return RecordedTargets(start.astype(np.int64), arrays["up_steps"].astype(np.int64),
+                           arrays["step"].astype(np.int64), arrays["plan_t"].astype(np.int64),
+                           arrays["heading"].astype(np.float64), paths.astype(np.float64))
 
 
 class AmpPathEnv:
@@ -205,6 +267,15 @@ class AmpPathEnv:
         self._nb_goal = np.zeros((e, nv, 2))
         self._nb_speed = np.ones((e, nv))
         self._sfm = SocialForceParams()
+        # recorded crowd targets (PathTaskConfig.recorded_prob): the person each env walks (-1: generated paths), the
+        # recording's step at the episode's start, the next and the end update index, and the turn applied (rad)
+        self._recorded = (load_recorded_targets(self.cfg.recorded_targets, self.cfg.control_hz)
+                          if self.cfg.recorded_prob > 0 else None)
+        self._rec_person = np.full(e, -1)
+        self._rec_offset = np.zeros(e, dtype=int)
+        self._rec_next = np.zeros(e, dtype=int)
+        self._rec_end = np.zeros(e, dtype=int)
+        self._rec_turn = np.zeros(e)
 
     # ------------------------------------------------------------------ obstacles
     def _add_box(self, centre: np.ndarray, half: np.ndarray, yaw: float) -> list[list[np.ndarray]]:
@@ -374,6 +445,52 @@ class AmpPathEnv:
         self.stance[idx] = 0.0
         if self.cfg.stage == 3:
             self._reset_stage3(idx, state)
+        if self._recorded is not None:
+            self._rec_person[idx] = -1
+            self._start_recorded(idx[self.rng.random(idx.size) < self.cfg.recorded_prob], state)
+
+    # ------------------------------------------------------------------ recorded crowd targets
+    def _start_recorded(self, idx: np.ndarray, state: dict[str, np.ndarray]) -> None:
+        """Episodes ``idx`` walk a random recorded person from a random point of its recording."""
+        rec = self._recorded
+        head = heading(state["root_quat"][idx]) if idx.size else np.zeros(0)
+        for k, i in enumerate(idx):
+            p = int(self.rng.integers(len(rec.up_steps)))
+            lo, hi = int(rec.person_start[p]), int(rec.person_start[p + 1])
+            offset = int(self.rng.integers(max(0, int(rec.up_steps[p]) - self.episode_steps) + 1))
+            u = max(lo, lo + int(np.searchsorted(rec.step[lo:hi], offset, side="right")) - 1)  # the update in force
+            self._rec_person[i], self._rec_offset[i], self._rec_end[i] = p, offset, hi
+            self._rec_turn[i] = float(head[k]) - float(rec.heading[u])
+            self._crowd[i] = False  # no generated replans in this episode
+            self._apply_recorded(int(i), u, state["root_pos"][i, :2], at_body=True)
+            self._rec_next[i] = u + 1
+
+    def _apply_recorded(self, i: int, u: int, pos: np.ndarray, at_body: bool = False) -> None:
+        """Env ``i``'s path from now on: recorded update ``u`` turned by the env's turn and placed at ``pos`` (its
+        origin, the recorded body, at the body; with ``at_body``, its point of now at the body)."""
+        rec = self._recorded
+        c, s = np.cos(self._rec_turn[i]), np.sin(self._rec_turn[i])
+        now = self._rec_offset[i] + int(self.t[i])
+        k0 = int(np.clip(now - rec.plan_t[u], 0, rec.paths.shape[1] - 1))
+        seg = rec.paths[u, k0:] @ np.array([[c, s], [-s, c]])
+        if at_body:
+            seg = seg - seg[0]
+        t = int(self.t[i])
+        m = min(len(seg), self._path_len - t)
+        self.paths[i, t:t + m] = pos + seg[:m]
+        self.paths[i, t + m:] = self.paths[i, t + m - 1]
+
+    def _step_recorded(self, state: dict[str, np.ndarray]) -> None:
+        """The recorded updates that have come due (the last of them, if several), for every env that walks one."""
+        rec = self._recorded
+        for i in np.flatnonzero(self._rec_person >= 0):
+            now = self._rec_offset[i] + self.t[i]
+            u = None
+            while self._rec_next[i] < self._rec_end[i] and rec.step[self._rec_next[i]] <= now:
+                u = int(self._rec_next[i])
+                self._rec_next[i] += 1
+            if u is not None:
+                self._apply_recorded(int(i), u, state["root_pos"][i, :2])
 
     def _random_points(self, n: int) -> np.ndarray:
         r = self.cfg.arena_radius * np.sqrt(self.rng.random(n))
@@ -537,6 +654,8 @@ class AmpPathEnv:
         truncated = ~terminated & (self.t >= self.episode_steps)
         if cfg.stage == 3:
             self._step_stage3(state)
+        if self._recorded is not None:
+            self._step_recorded(state)
         obs = self._observe(state)
         info: dict[str, Any] = {
             "amp_obs": amp_obs, "reward/track": r_tau, "reward/energy": r_e, "reward/direction": r_d,

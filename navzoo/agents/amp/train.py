@@ -107,6 +107,10 @@ class TrainArgs:
     # python -m navzoo.agents.amp.bc --data-out F (the observations must be this task's)
     bc_coef: float = 0.0
     bc_data: str = ""
+    # recorded crowd targets (PathTaskConfig.recorded_targets / recorded_prob): an .npz of
+    # scripts/amp_target_replay.py --save-targets, walked in that share of the episodes instead of generated paths
+    recorded_targets: str = ""
+    recorded_prob: float = 0.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -137,7 +141,12 @@ def run(args: TrainArgs) -> dict[str, Any]:
                           boxes_per_patch=4 if args.obstacles else 0, pair_patches=bool(args.obstacles),
                           amp_velocity=args.amp_velocity, amp_velocity_span=args.amp_velocity_span,
                           door_prob=args.door_prob, stance_reward=args.stance_reward,
-                          replan_sync=bool(args.replan_sync))
+                          replan_sync=bool(args.replan_sync), recorded_targets=args.recorded_targets or None,
+                          recorded_prob=args.recorded_prob)
+    if task.recorded_prob > 0:
+        from navzoo.agents.amp.path_env import load_recorded_targets
+
+        load_recorded_targets(task.recorded_targets, task.control_hz)  # a bad file is named before any worker starts
     make_reference = grounded_locomotion_reference if args.ground_reference else locomotion_reference
     if args.workers > 1:
         env: Any = SubprocAmpVecEnv(make_reference, args.workers, args.envs_per_worker, task, seed=args.seed)
