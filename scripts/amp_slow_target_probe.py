@@ -85,15 +85,16 @@ def probe(speed: float, bearing_deg: float, seconds: float = 12.0, seed: int = 0
     while env.sim_time < go + seconds - 1e-9 and not env._needs_reset:
         wrapped.step({})
         t_rel = float(env.sim_time) - go
+        pos = env.pos[env.n_robots]  # the body's planar root after the step (the env reads it once per step)
         if fell_at is None and amp.fallen[0]:
             fell_at = round(t_rel, 2)
         if t_rel < 0.0:
-            start = amp.planar()[0][0].copy()
+            start = pos.copy()
             continue
-        along = float((amp.planar()[0][0] - start) @ u)
+        along = float((pos - start) @ u)
         if t_1m is None and along >= 1.0:
             t_1m = round(t_rel, 3)
-    hd = float(amp.planar()[1][0])
+    hd = float(env.yaw[env.n_robots])
     heading_error = abs((hd - yaw + np.pi) % (2 * np.pi) - np.pi)
     fell = bool(amp.fallen[0])
     wrapped.close()

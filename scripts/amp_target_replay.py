@@ -38,7 +38,7 @@ import numpy as np
 
 def record(scene: str, n: int, seed: int, seconds: float, policy_dir: str | None) -> dict:
     """The crowd run: per person its first heading, up-time (s), whether it fell and how, and its target updates
-    ``(step, plan_t, k_prog, relative path)``."""
+    ``(step, plan_t, k_prog, relative path, the body's heading)``, in the order they came."""
     from navzoo.benchmark import pedestrians as P
 
     wrapped, env = P._make(scene, n, "amp", seconds, seed, policy_dir, "sfm")
@@ -46,8 +46,7 @@ def record(scene: str, n: int, seed: int, seconds: float, policy_dir: str | None
     updates: list[list[tuple]] = [[] for _ in range(n)]
     last = [None] * n
 
-    def keep() -> None:
-        pos, hd = amp.planar()[:2]
+    def keep(pos: np.ndarray, hd: np.ndarray) -> None:
         for j in range(n):
             key = (int(amp.plan_t[j]), amp.paths[j].tobytes())
             if key != last[j]:
@@ -55,21 +54,21 @@ def record(scene: str, n: int, seed: int, seconds: float, policy_dir: str | None
                 updates[j].append((int(amp.t), int(amp.plan_t[j]), int(amp.k_prog[j]),
                                    (amp.paths[j] - pos[j]).astype(np.float32), float(hd[j])))
 
-    heading0 = amp.planar()[1].copy()
-    keep()
+    prev, heading0 = amp.planar()[:2]
+    keep(prev, heading0)
     falls = P.FallLog(env)
     up_steps = np.zeros(n, dtype=np.int64)
     walked = np.zeros(n)
-    prev = amp.planar()[0].copy()
+    h = slice(env.n_robots, env.n_total)
     while not env._needs_reset:
         wrapped.step({})
         fallen = env.human_fallen.copy()
         falls.update(env.human_map_contact, fallen, P.target_points(env))
         up_steps += ~fallen
-        now = amp.planar()[0].copy()
+        now = env.pos[h].copy()  # the bodies' planar roots after the step (the env reads them once per step)
         walked += np.where(fallen, 0.0, np.linalg.norm(now - prev, axis=1))
         prev = now
-        keep()
+        keep(now, env.yaw[h])
     wrapped.close()
     dt = float(env.config.dt)
     causes: dict[int, str] = {e["id"]: P.fall_cause(e) for e in falls.events}
@@ -83,19 +82,19 @@ def replay(updates: list[tuple], heading0: float, up_s: float, seed: int, policy
 
     wrapped, env = P._make("circle_crossing", 1, "amp", up_s + 5.0, seed, policy_dir, "sfm")
     amp = env.amp
-    turn = float(amp.planar()[1][0]) - heading0
+    start, hd = amp.planar()[:2]
+    turn = float(hd[0]) - heading0
     rot = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
     amp.plan_all = lambda who=None: None  # the recorded updates are the only targets
     t0 = int(amp.t)
-    queue = sorted(updates, key=lambda u: u[0])
     k = 0
     fell_at = None
     walked = 0.0
-    prev = amp.planar()[0][0].copy()
+    pos = start[0]
     while env.sim_time < up_s - 1e-9 and not env._needs_reset:
-        while k < len(queue) and queue[k][0] <= int(amp.t) - t0:
-            step, plan_t, k_prog, rel = queue[k][:4]
-            amp.paths[0] = amp.planar()[0][0] + rel @ rot.T
+        while k < len(updates) and updates[k][0] <= int(amp.t) - t0:  # the updates come in step order
+            step, plan_t, k_prog, rel = updates[k][:4]
+            amp.paths[0] = pos + rel @ rot.T
             amp.plan_t[0] = t0 + plan_t
             amp.k_prog[0] = k_prog
             k += 1
@@ -103,9 +102,9 @@ def replay(updates: list[tuple], heading0: float, up_s: float, seed: int, policy
         if amp.fallen[0]:
             fell_at = round(float(env.sim_time), 2)
             break
-        now = amp.planar()[0][0].copy()
-        walked += float(np.linalg.norm(now - prev))
-        prev = now
+        now = env.pos[env.n_robots].copy()
+        walked += float(np.linalg.norm(now - pos))
+        pos = now
     wrapped.close()
     return {"replay_fell": fell_at is not None, "replay_fell_at_s": fell_at, "replay_walked_m": round(walked, 2)}
 

@@ -453,7 +453,7 @@ class AmpPathEnv:
     def _start_recorded(self, idx: np.ndarray, state: dict[str, np.ndarray]) -> None:
         """Episodes ``idx`` walk a random recorded person from a random point of its recording."""
         rec = self._recorded
-        head = heading(state["root_quat"][idx]) if idx.size else np.zeros(0)
+        head = heading(state["root_quat"][idx])
         for k, i in enumerate(idx):
             p = int(self.rng.integers(len(rec.up_steps)))
             lo, hi = int(rec.person_start[p]), int(rec.person_start[p + 1])
