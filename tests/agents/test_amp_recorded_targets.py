@@ -83,6 +83,25 @@ def test_bad_recordings_and_settings_are_named(tmp_path):
     assert rec.paths.shape == (2, 226, 2) and list(rec.step) == [0, 60]
 
 
+def test_several_recordings_are_pooled_and_short_paths_held_at_their_end(tmp_path):
+    a = _write(tmp_path / "a.npz")
+    short = np.zeros((1, 100, 2), dtype=np.float32)
+    short[0, :, 1] = np.arange(100) * DT  # 1 m/s to the left, 100 points
+    b = _write(tmp_path / "b.npz", up_steps=50, person_start=np.array([0, 1]), step=np.array([0]),
+               plan_t=np.array([5]), heading=np.array([0.5], dtype=np.float32), paths=short)
+    rec = load_recorded_targets(f"{a}, {b}")
+    assert list(rec.person_start) == [0, 2, 3] and list(rec.up_steps) == [90, 50]
+    assert list(rec.step) == [0, 60, 0] and list(rec.plan_t) == [0, 60, 5]
+    assert np.allclose(rec.heading, [0.0, 0.0, 0.5])
+    assert rec.paths.shape == (3, 226, 2)
+    assert np.array_equal(rec.paths[:2], load_recorded_targets(a).paths)
+    assert np.array_equal(rec.paths[2, :100], short[0]) and np.all(rec.paths[2, 100:] == short[0, -1])
+    with pytest.raises(ValueError, match="empty file name"):
+        load_recorded_targets(f"{a},")
+    with pytest.raises(ValueError, match="cannot read"):
+        load_recorded_targets(f"{a},{tmp_path / 'none.npz'}")
+
+
 def test_training_names_a_bad_recording_before_it_starts(tmp_path):
     from navzoo.agents.amp.train import TrainArgs, run
 

@@ -175,7 +175,27 @@ class RecordedTargets:
 
 
 def load_recorded_targets(path: str, control_hz: int = 30) -> RecordedTargets:
-    """Read and check recorded target updates (plain arrays only, no pickles); a ValueError names the problem."""
+    """Read and check recorded target updates (plain arrays only, no pickles); a ValueError names the problem.
+
+    ``path`` may name several files separated by commas (e.g. recordings of several seeds): their people are pooled,
+    and paths shorter than the longest are held at their last point."""
+    parts = [p.strip() for p in str(path).split(",")]
+    if len(parts) > 1:
+        if any(not p for p in parts):
+            raise ValueError(f"recorded targets {path!r}: an empty file name in the comma-separated list")
+        recs = [_load_recorded_file(p, control_hz) for p in parts]
+        length = max(r.paths.shape[1] for r in recs)
+        paths = [np.concatenate([r.paths, np.repeat(r.paths[:, -1:], length - r.paths.shape[1], axis=1)], axis=1)
+                 for r in recs]
+        offsets = np.cumsum([0] + [len(r.step) for r in recs])
+        return RecordedTargets(
+            np.concatenate([recs[0].person_start[:1]] + [r.person_start[1:] + o for r, o in zip(recs, offsets)]),
+            *(np.concatenate([getattr(r, k) for r in recs]) for k in ("up_steps", "step", "plan_t", "heading")),
+            np.concatenate(paths))
+    return _load_recorded_file(parts[0], control_hz)
+
+
+def _load_recorded_file(path: str, control_hz: int) -> RecordedTargets:
     try:
         with np.load(path, allow_pickle=False) as d:
             arrays = {k: d[k] for k in d.files}

@@ -108,7 +108,8 @@ class TrainArgs:
     bc_coef: float = 0.0
     bc_data: str = ""
     # recorded crowd targets (PathTaskConfig.recorded_targets / recorded_prob): an .npz of
-    # scripts/amp_target_replay.py --save-targets, walked in that share of the episodes instead of generated paths
+    # scripts/amp_target_replay.py --save-targets (several, comma-separated, are pooled), walked in that share of the
+    # episodes instead of generated paths
     recorded_targets: str = ""
     recorded_prob: float = 0.0
 
