@@ -203,6 +203,10 @@ def main(argv: list[str] | None = None) -> int:
                 ap.error(f"--scene {name}: {e}")
             if got:
                 print(f"{name} ({n} people, seed {a.seed}): {json.dumps(summary(got))}", flush=True)
+            else:
+                rec = recordings[-1]
+                print(f"{name} ({n} people, seed {a.seed}): recorded {sum(map(len, rec['updates']))} target updates, "
+                      f"{sum(rec['fell'])} of {n} people fell", flush=True)
             rows += got
     if a.save_targets:
         Path(a.save_targets).parent.mkdir(parents=True, exist_ok=True)

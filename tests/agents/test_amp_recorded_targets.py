@@ -16,7 +16,7 @@ def _write(path, up_steps=90, dt=DT, **changes):
     k = np.arange(226)[:, None] * DT
     ahead = np.concatenate([1.0 * k, 0 * k], axis=1)  # 1 m/s along the recorded body's heading (0 rad) ...
     left = np.concatenate([0 * k, 0.5 * k], axis=1)  # ... then, from step 60, 0.5 m/s to its left
-    arrays = {"person_start": np.array([0, 2]), "up_steps": np.array([up_steps]), "step": np.array([0, 60]),
+    arrays = {"person_start": np.array([0, 2]), "up_steps": np.atleast_1d(up_steps), "step": np.array([0, 60]),
               "plan_t": np.array([0, 60]), "heading": np.array([0.0, 0.0], dtype=np.float32),
               "paths": np.stack([ahead, left]).astype(np.float32), "dt": np.float64(dt)}
     arrays.update(changes)
@@ -107,3 +107,44 @@ def test_training_names_a_bad_recording_before_it_starts(tmp_path):
 
     with pytest.raises(ValueError, match="cannot read"):
         run(TrainArgs(out=str(tmp_path / "run"), recorded_targets=str(tmp_path / "none.npz"), recorded_prob=0.3))
+
+
+def test_in_patches_with_boxes_recorded_episodes_are_drawn_clear_of_them(tmp_path, reference):
+    # four people: three walk 1.2 m/s straight ahead for 10 s, one stands; in box patches a course 12 m long rarely
+    # stays clear of every box, and the draws must prefer the clear ones
+    k = np.arange(301)[:, None] * DT
+    ahead = np.concatenate([1.2 * k, 0 * k], axis=1).astype(np.float32)
+    still = np.zeros_like(ahead)
+    f = _write(tmp_path / "rec.npz", up_steps=np.array([300, 300, 300, 300]), person_start=np.arange(5),
+               step=np.zeros(4, dtype=int), plan_t=np.zeros(4, dtype=int), heading=np.zeros(4, dtype=np.float32),
+               paths=np.stack([ahead, ahead, ahead, still]))
+    cfg = PathTaskConfig(stage=3, obstacle_obs=True, boxes_per_patch=4, pair_patches=True, episode_seconds=10.0,
+                         rsi_prob=0.0, recorded_targets=f, recorded_prob=1.0)
+    env = AmpPathEnv(16, reference, cfg, seed=3)
+    env.reset(seed=3)
+    state = env.bodies.read_state()
+    rec = env._recorded
+    clear = []
+    for i in range(16):
+        p = int(env._rec_person[i])
+        course = env._recorded_course(int(rec.person_start[p]), int(rec.person_start[p + 1]), int(env._rec_offset[i]),
+                                      float(env._rec_turn[i]), state["root_pos"][i, :2])
+        assert course.shape == (env.episode_steps + 1, 2)
+        assert np.allclose(course[0], state["root_pos"][i, :2])
+        if p < 3:  # the course is the path the episode walks: 12 m straight along the body's heading
+            assert np.allclose(np.linalg.norm(course[-1] - course[0]), 12.0, atol=1e-3)
+        clear.append(env._clearance(i, course).min())
+    clear = np.array(clear)
+    assert (clear >= 0.6).all()  # the standing person is always clear: without the redraws 5 of these 16 are not
+    env.close()
+
+
+def test_the_course_chains_later_updates_where_the_targets_stood(tmp_path, reference):
+    f = _write(tmp_path / "rec.npz")
+    env = AmpPathEnv(1, reference, PathTaskConfig(episode_seconds=3.0, rsi_prob=0.0, recorded_targets=f,
+                                                  recorded_prob=1.0), seed=0)
+    course = env._recorded_course(0, 2, 0, 0.0, np.array([1.0, 2.0]))
+    assert course.shape == (91, 2)
+    assert np.allclose(course[60], [3.0, 2.0])  # 2 s at 1 m/s ahead ...
+    assert np.allclose(course[90], [3.0, 2.5])  # ... then 1 s at 0.5 m/s to the left
+    env.close()

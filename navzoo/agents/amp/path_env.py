@@ -119,7 +119,8 @@ class PathTaskConfig:
     # person was given in a navzoo crowd (an .npz of scripts/amp_target_replay.py --save-targets, read by
     # load_recorded_targets), from a random point of the recording: each recorded update is turned by the
     # body's heading against the recorded body's and anchored at the body when it comes; such an episode gets no
-    # generated replans. The crowd's target paths fell controllers that walk generated paths well
+    # generated replans. In patches with boxes or a wall, the person and start are drawn again while the episode's
+    # targets would pass within RECORDED_CLEARANCE of them (the recordings know nothing of the patch). The crowd's target paths fell controllers that walk generated paths well
     # (docs/pedestrians_log.md, "The stance run without its term, and why its bodies fall")
     recorded_targets: str | None = None
     recorded_prob: float = 0.0
@@ -159,6 +160,12 @@ class PathTaskConfig:
                              f"got {self.amp_velocity!r}")
 
 
+#: A recorded episode in a patch with obstacles is drawn again (at most RECORDED_DRAWS times) while its targets come
+#: within RECORDED_CLEARANCE (m) of a box or wall (PathTaskConfig.recorded_prob).
+RECORDED_DRAWS = 30
+RECORDED_CLEARANCE = 0.6
+
+
 @dataclass(frozen=True)
 class RecordedTargets:
     """Target paths given to people in navzoo crowds (``scripts/amp_target_replay.py --save-targets``): per person
@@ -187,9 +194,9 @@ def load_recorded_targets(path: str, control_hz: int = 30) -> RecordedTargets:
         length = max(r.paths.shape[1] for r in recs)
         paths = [np.concatenate([r.paths, np.repeat(r.paths[:, -1:], length - r.paths.shape[1], axis=1)], axis=1)
                  for r in recs]
-        offsets = np.cumsum([0] + [len(r.step) for r in recs])
+        offsets = np.cumsum([len(r.step) for r in recs[:-1]], initial=0)
         return RecordedTargets(
-            np.concatenate([recs[0].person_start[:1]] + [r.person_start[1:] + o for r, o in zip(recs, offsets)]),
+            np.concatenate([recs[0].person_start[:1]] + [r.person_start[1:] + o for r, o in zip(recs, offsets, strict=True)]),
             *(np.concatenate([getattr(r, k) for r in recs]) for k in ("up_steps", "step", "plan_t", "heading")),
             np.concatenate(paths))
     return _load_recorded_file(parts[0], control_hz)
@@ -475,15 +482,53 @@ class AmpPathEnv:
         rec = self._recorded
         head = heading(state["root_quat"][idx])
         for k, i in enumerate(idx):
-            p = int(self.rng.integers(len(rec.up_steps)))
-            lo, hi = int(rec.person_start[p]), int(rec.person_start[p + 1])
-            offset = int(self.rng.integers(max(0, int(rec.up_steps[p]) - self.episode_steps) + 1))
-            u = max(lo, lo + int(np.searchsorted(rec.step[lo:hi], offset, side="right")) - 1)  # the update in force
+            best = None
+            # In a patch with boxes (or a wall), draw again (at most RECORDED_DRAWS times) while the episode's targets
+            # would come within RECORDED_CLEARANCE of them: the recording knows nothing of the patch's obstacles, and
+            # a target path through a box asks the body to walk into it. The draw clearest of them is kept.
+            for _ in range(RECORDED_DRAWS if len(self._patch_segments[self.patch[i]]) else 1):
+                p = int(self.rng.integers(len(rec.up_steps)))
+                lo, hi = int(rec.person_start[p]), int(rec.person_start[p + 1])
+                offset = int(self.rng.integers(max(0, int(rec.up_steps[p]) - self.episode_steps) + 1))
+                u = max(lo, lo + int(np.searchsorted(rec.step[lo:hi], offset, side="right")) - 1)  # in force
+                turn = float(head[k]) - float(rec.heading[u])
+                clear = (float(self._clearance(int(i), self._recorded_course(u, hi, offset, turn,
+                                                                              state["root_pos"][i, :2])).min())
+                         if len(self._patch_segments[self.patch[i]]) else np.inf)
+                if best is None or clear > best[0]:
+                    best = (clear, p, hi, offset, u, turn)
+                if clear >= RECORDED_CLEARANCE:
+                    break
+            _, p, hi, offset, u, turn = best
             self._rec_person[i], self._rec_offset[i], self._rec_end[i] = p, offset, hi
-            self._rec_turn[i] = float(head[k]) - float(rec.heading[u])
+            self._rec_turn[i] = turn
             self._crowd[i] = False  # no generated replans in this episode
             self._apply_recorded(int(i), u, state["root_pos"][i, :2], at_body=True)
             self._rec_next[i] = u + 1
+
+    def _recorded_course(self, u: int, end: int, offset: int, turn: float, pos: np.ndarray) -> np.ndarray:
+        """The target points (T, 2) an episode would walk from recorded update ``u`` (person's updates end at ``end``)
+        at recording step ``offset``, turned by ``turn`` and anchored at ``pos``, if the body moved with its targets:
+        each later update is placed where the target of the update before it stood when it came."""
+        rec = self._recorded
+        c, s = np.cos(turn), np.sin(turn)
+        rot = np.array([[c, s], [-s, c]])
+        stop = offset + self.episode_steps
+        last = rec.paths.shape[1] - 1
+        pts, base, now = [], np.asarray(pos, dtype=float), offset
+        while True:
+            nxt = int(rec.step[u + 1]) if u + 1 < end else stop
+            upto = max(now + 1, min(nxt, stop))
+            k = np.clip(np.arange(now, upto + 1) - int(rec.plan_t[u]), 0, last)
+            seg = rec.paths[u, k] @ rot
+            seg = seg - seg[0] + base
+            pts.append(seg[:-1])
+            base = seg[-1]  # where the next update is anchored
+            now = upto
+            u += 1
+            if now >= stop or u >= end:
+                pts.append(seg[-1:])
+                return np.concatenate(pts)
 
     def _apply_recorded(self, i: int, u: int, pos: np.ndarray, at_body: bool = False) -> None:
         """Env ``i``'s path from now on: recorded update ``u`` turned by the env's turn and placed at ``pos`` (its
