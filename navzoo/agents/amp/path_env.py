@@ -194,7 +194,7 @@ def load_recorded_targets(path: str, control_hz: int = 30) -> RecordedTargets:
         length = max(r.paths.shape[1] for r in recs)
         paths = [np.concatenate([r.paths, np.repeat(r.paths[:, -1:], length - r.paths.shape[1], axis=1)], axis=1)
                  for r in recs]
-        offsets = np.cumsum([len(r.step) for r in recs[:-1]], initial=0)
+        offsets = np.cumsum([0] + [len(r.step) for r in recs[:-1]])
         return RecordedTargets(
             np.concatenate([recs[0].person_start[:1]] + [r.person_start[1:] + o for r, o in zip(recs, offsets, strict=True)]),
             *(np.concatenate([getattr(r, k) for r in recs]) for k in ("up_steps", "step", "plan_t", "heading")),
