@@ -114,13 +114,15 @@ def save_targets(path: str, recordings: list[dict]) -> int:
     arrays, :func:`navzoo.agents.amp.path_env.load_recorded_targets`); returns the number of people."""
     people = [(rec["updates"][j], int(round(rec["up_s"][j] / rec["dt"]))) for rec in recordings
               for j in range(len(rec["updates"])) if rec["updates"][j]]
+    from navzoo.agents.amp.path_env import pack_recorded_paths
+
     ups = [u for upd, _ in people for u in upd]
     np.savez_compressed(
         path, person_start=np.cumsum([0] + [len(upd) for upd, _ in people]).astype(np.int64),
         up_steps=np.array([n for _, n in people], dtype=np.int64),
         step=np.array([u[0] for u in ups], dtype=np.int64), plan_t=np.array([u[1] for u in ups], dtype=np.int64),
-        heading=np.array([u[4] for u in ups], dtype=np.float32), paths=np.stack([u[3] for u in ups]),
-        dt=np.float64(recordings[0]["dt"]))
+        heading=np.array([u[4] for u in ups], dtype=np.float32), dt=np.float64(recordings[0]["dt"]),
+        **pack_recorded_paths(np.stack([u[3] for u in ups])))
     return len(people)
 
 

@@ -60,6 +60,10 @@ def test_recorded_episodes_are_the_share_asked_and_get_no_generated_replans(tmp_
     walks = env._rec_person >= 0
     assert 8 <= walks.sum() <= 32 and not env._crowd[walks].any()
     assert (env._rec_offset[walks] <= 400 - env.episode_steps).all()
+    _, _, _, _, info = env.step(np.zeros((40, env.act_dim)))
+    assert np.array_equal(info["log/recorded"], walks.astype(float))
+    assert np.array_equal(info["log/fall_recorded"] + info["log/fall_generated"], info["fallen"].astype(float))
+    assert not (info["log/fall_recorded"] * ~walks).any()
     env.close()
 
 
@@ -148,3 +152,37 @@ def test_the_course_chains_later_updates_where_the_targets_stood(tmp_path, refer
     assert np.allclose(course[60], [3.0, 2.0])  # 2 s at 1 m/s ahead ...
     assert np.allclose(course[90], [3.0, 2.5])  # ... then 1 s at 0.5 m/s to the left
     env.close()
+
+
+def test_packed_paths_come_back_within_half_a_rounding_step():
+    from navzoo.agents.amp.path_env import pack_recorded_paths, unpack_recorded_paths
+
+    rng = np.random.default_rng(0)
+    knots = np.cumsum(rng.normal(0, 0.1, (5, 76, 2)), axis=1)  # straight between every third point, as the planners'
+    t = np.arange(226) / 3.0
+    straight = np.stack([np.stack([np.interp(t, np.arange(76), knots[u, :, c]) for c in range(2)], -1)
+                         for u in range(5)])
+    packed = pack_recorded_paths(straight)
+    assert int(packed["path_stride"]) == 3 and packed["paths_q"].dtype == np.int16
+    assert packed["paths_q"].shape == (5, 76, 2)
+    assert np.abs(unpack_recorded_paths(packed) - straight).max() <= 0.0025 + 1e-9
+    bent = straight + 0.05 * np.sin(np.arange(226))[None, :, None]  # not straight between the knots: every point kept
+    packed = pack_recorded_paths(bent)
+    assert int(packed["path_stride"]) == 1
+    assert np.abs(unpack_recorded_paths(packed) - bent).max() <= 0.0025 + 1e-9
+
+
+def test_packed_recordings_load_and_bad_packing_is_named(tmp_path):
+    from navzoo.agents.amp.path_env import pack_recorded_paths
+
+    plain = load_recorded_targets(_write(tmp_path / "plain.npz"))
+    with np.load(tmp_path / "plain.npz") as d:
+        arrays = {k: d[k] for k in d.files if k != "paths"}
+    np.savez(tmp_path / "packed.npz", **arrays, **pack_recorded_paths(plain.paths))
+    rec = load_recorded_targets(str(tmp_path / "packed.npz"))
+    assert np.abs(rec.paths - plain.paths).max() <= 0.0025 + 1e-9 and list(rec.step) == list(plain.step)
+    bad = pack_recorded_paths(plain.paths)
+    bad["path_len"] = np.int64(300)
+    np.savez(tmp_path / "bad.npz", **arrays, **bad)
+    with pytest.raises(ValueError, match="paths_q must be"):
+        load_recorded_targets(str(tmp_path / "bad.npz"))

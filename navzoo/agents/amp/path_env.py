@@ -120,8 +120,10 @@ class PathTaskConfig:
     # load_recorded_targets), from a random point of the recording: each recorded update is turned by the
     # body's heading against the recorded body's and anchored at the body when it comes; such an episode gets no
     # generated replans. In patches with boxes or a wall, the person and start are drawn again while the episode's
-    # targets would pass within RECORDED_CLEARANCE of them (the recordings know nothing of the patch). The crowd's target paths fell controllers that walk generated paths well
-    # (docs/pedestrians_log.md, "The stance run without its term, and why its bodies fall")
+    # targets would pass within RECORDED_CLEARANCE of them (the recordings know nothing of the patch). info logs
+    # "log/recorded", "log/fall_recorded" and "log/fall_generated" (training's env/recorded etc.: falls per step of
+    # either kind = env/fall_KIND / its share). The crowd's target paths fell controllers that walk generated paths
+    # well (docs/pedestrians_log.md, "The stance run without its term, and why its bodies fall")
     recorded_targets: str | None = None
     recorded_prob: float = 0.0
 
@@ -202,12 +204,57 @@ def load_recorded_targets(path: str, control_hz: int = 30) -> RecordedTargets:
     return _load_recorded_file(parts[0], control_hz)
 
 
+def pack_recorded_paths(paths: np.ndarray) -> dict[str, np.ndarray]:
+    """Recorded target paths (U, L, 2) in m as compact arrays for an .npz (``paths_q``, ``path_len``, ``path_stride``,
+    ``path_scale``): every ``path_stride``-th point (3 where the paths are straight between those points, as the
+    target planners' 0.1 s rollouts at 30 Hz are; else every point, and always the last), rounded to ``path_scale`` m
+    (5 mm) and stored as int16 steps from the point before. :func:`unpack_recorded_paths` restores them to within half
+    a step of the rounding; about a twentieth of the size of the float32 paths, compressed."""
+    paths = np.asarray(paths, dtype=np.float64)
+    length = paths.shape[1]
+    scale = max(0.005, float(np.abs(paths).max(initial=0.0)) / 16000.0)  # the steps stay well inside int16
+    for stride in (3, 1):
+        knots = np.unique(np.append(np.arange(0, length, stride), length - 1))
+        back = _interp_knots(paths[:, knots], knots, length)
+        if np.abs(back - paths).max(initial=0.0) <= 1e-4:
+            break
+    q = np.round(paths[:, knots] / scale).astype(np.int64)
+    steps = np.diff(q, axis=1, prepend=0)
+    return {"paths_q": steps.astype(np.int16), "path_len": np.int64(length), "path_stride": np.int64(stride),
+            "path_scale": np.float64(scale)}
+
+
+def unpack_recorded_paths(arrays: dict[str, np.ndarray]) -> np.ndarray:
+    """The paths (U, L, 2) of :func:`pack_recorded_paths`'s arrays."""
+    length, stride = int(arrays["path_len"]), int(arrays["path_stride"])
+    knots = np.unique(np.append(np.arange(0, length, stride), length - 1))
+    q = np.cumsum(arrays["paths_q"].astype(np.int64), axis=1)
+    if q.ndim != 3 or q.shape[1] != len(knots) or q.shape[2] != 2:
+        raise ValueError(f"paths_q must be (U, {len(knots)}, 2) for path_len {length} and path_stride {stride}, "
+                         f"got {q.shape}")
+    return _interp_knots(q * float(arrays["path_scale"]), knots, length)
+
+
+def _interp_knots(values: np.ndarray, knots: np.ndarray, length: int) -> np.ndarray:
+    """Linear interpolation of values (U, K, 2) at ``knots`` to every index 0..length-1."""
+    if len(knots) == length:
+        return values.copy()
+    j = np.clip(np.searchsorted(knots, np.arange(length), side="right") - 1, 0, len(knots) - 2)
+    w = ((np.arange(length) - knots[j]) / (knots[j + 1] - knots[j]))[None, :, None]
+    return values[:, j] * (1.0 - w) + values[:, j + 1] * w
+
+
 def _load_recorded_file(path: str, control_hz: int) -> RecordedTargets:
     try:
         with np.load(path, allow_pickle=False) as d:
             arrays = {k: d[k] for k in d.files}
     except (OSError, ValueError) as e:
         raise ValueError(f"recorded targets {path}: cannot read them ({e})") from None
+    if "paths" not in arrays and all(k in arrays for k in ("paths_q", "path_len", "path_stride", "path_scale")):
+        try:
+            arrays["paths"] = unpack_recorded_paths(arrays)
+        except (ValueError, TypeError, IndexError) as e:
+            raise ValueError(f"recorded targets {path}: {e}") from None
     need = ("person_start", "up_steps", "step", "plan_t", "heading", "paths", "dt")
     missing = [k for k in need if k not in arrays]
     if missing:
@@ -726,6 +773,12 @@ class AmpPathEnv:
             "amp_obs": amp_obs, "reward/track": r_tau, "reward/energy": r_e, "reward/direction": r_d,
             "reward/stance": r_s, "log/stance_split_m": split, "path_error": np.sqrt(err2), "fallen": fallen,
         }
+        if self._recorded is not None:
+            # the rollout means of these give the share of recorded episodes and each kind's falls per step
+            walks = self._rec_person >= 0
+            info["log/recorded"] = walks.astype(np.float64)
+            info["log/fall_recorded"] = (fallen & walks).astype(np.float64)
+            info["log/fall_generated"] = (fallen & ~walks).astype(np.float64)
         done = terminated | truncated
         if done.any():
             info["final_obs"] = obs.copy()
