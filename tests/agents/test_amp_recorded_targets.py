@@ -43,6 +43,7 @@ def test_an_episode_walks_the_recorded_updates_turned_to_the_body(tmp_path, refe
         assert np.allclose(d, [np.cos(head[i]), np.sin(head[i])], atol=1e-6)
     # the second update comes at step 60: from the body then, 0.5 m/s to the left of the first heading
     env.t[:] = 60
+    env.k[:] = 60  # the target index: the clock's (no recorded_lag_s)
     env._step_recorded(state)
     for i in range(2):
         assert np.allclose(env.paths[i, 60], state["root_pos"][i, :2])
@@ -186,3 +187,25 @@ def test_packed_recordings_load_and_bad_packing_is_named(tmp_path):
     np.savez(tmp_path / "bad.npz", **arrays, **bad)
     with pytest.raises(ValueError, match="paths_q must be"):
         load_recorded_targets(str(tmp_path / "bad.npz"))
+
+
+def test_with_recorded_lag_the_target_waits_for_the_body(tmp_path, reference):
+    f = _write(tmp_path / "rec.npz", up_steps=300)
+    runs = {}
+    for lag in (0.0, 0.3):
+        env = AmpPathEnv(4, reference, PathTaskConfig(episode_seconds=3.0, rsi_prob=0.0, recorded_targets=f,
+                                                      recorded_prob=0.5, recorded_lag_s=lag), seed=4)
+        env.reset(seed=4)
+        walks = env._rec_person >= 0
+        assert walks.any() and (~walks).any()
+        for _ in range(20):  # 2/3 s of standing (zero actions; bodies fall at about 1 s): the target walks on
+            env.step(np.zeros((4, env.act_dim)))
+        runs[lag] = (walks, env.k.copy(), env.t.copy())
+        env.close()
+    walks, k, t = runs[0.0]
+    assert np.array_equal(k, t)  # on the clock
+    walks, k, t = runs[0.3]
+    assert np.array_equal(k[~walks], t[~walks])  # generated paths stay on the clock
+    assert (t[walks] == 20).all() and (k[walks] <= 9 + 3).all()  # 0.3 s ahead of a body that hardly moved
+    with pytest.raises(ValueError, match="recorded_lag_s"):
+        PathTaskConfig(recorded_lag_s=-0.1)

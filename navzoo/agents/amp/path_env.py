@@ -126,6 +126,10 @@ class PathTaskConfig:
     # well (docs/pedestrians_log.md, "The stance run without its term, and why its bodies fall")
     recorded_targets: str | None = None
     recorded_prob: float = 0.0
+    # > 0: a recorded episode's target waits for its body, as a person's does in navzoo scenes (the progress index of
+    # navzoo.envs.amp_humans, LAG_LIMIT_S = 0.3 s there): the target index advances one step per step, but at most
+    # this many seconds of path ahead of the path point nearest the body; 0: on the clock, as generated paths are
+    recorded_lag_s: float = 0.0
 
     def __post_init__(self) -> None:
         if self.stage not in (1, 2, 3):
@@ -151,6 +155,9 @@ class PathTaskConfig:
         q = self.recorded_prob
         if isinstance(q, bool) or not isinstance(q, int | float) or not 0.0 <= q <= 1.0:
             raise ValueError(f"PathTaskConfig.recorded_prob must lie in [0, 1], got {q!r}")
+        lag = self.recorded_lag_s
+        if isinstance(lag, bool) or not isinstance(lag, int | float) or not np.isfinite(lag) or lag < 0:
+            raise ValueError(f"PathTaskConfig.recorded_lag_s must be a finite number >= 0, got {lag!r}")
         if q > 0 and not self.recorded_targets:
             raise ValueError(f"PathTaskConfig.recorded_prob {q} needs recorded_targets (an .npz of "
                              "scripts/amp_target_replay.py --save-targets)")
@@ -323,6 +330,7 @@ class AmpPathEnv:
         self._segments, self._patch_segments = self._build_boxes(n_patches, cols)
         self.paths = np.zeros((self.num_envs, self._path_len, 2))
         self.t = np.zeros(self.num_envs, dtype=int)
+        self.k = np.zeros(self.num_envs, dtype=int)  # each env's target index (the clock, self.t, unless held)
         self._clock = 0  # control steps since construction (replan_sync)
         self._window = np.zeros((self.num_envs, self.cfg.amp_window, FEATURE_DIM))
         self.stance = np.zeros(self.num_envs)  # running mean of features.foot_split (STANCE_TAU_S), per humanoid
@@ -516,6 +524,7 @@ class AmpPathEnv:
             self.paths[i] = self._make_path(state["root_pos"][i, :2], head[k], speeds[k])
             self._window[i] = feats[k]
         self.t[idx] = 0
+        self.k[idx] = 0
         self.stance[idx] = 0.0
         if self.cfg.stage == 3:
             self._reset_stage3(idx, state)
@@ -587,7 +596,7 @@ class AmpPathEnv:
         seg = rec.paths[u, k0:] @ np.array([[c, s], [-s, c]])
         if at_body:
             seg = seg - seg[0]
-        t = int(self.t[i])
+        t = int(self.k[i])  # from the target index on (the clock's, unless the target waits for the body)
         m = min(len(seg), self._path_len - t)
         self.paths[i, t:t + m] = pos + seg[:m]
         self.paths[i, t + m:] = self.paths[i, t + m - 1]
@@ -717,7 +726,7 @@ class AmpPathEnv:
         self._replan(np.flatnonzero(self._crowd & (self.t >= self._next_plan)), state)
 
     def _observe(self, state: dict[str, np.ndarray]) -> np.ndarray:
-        steps = self.t[:, None] + self._wp_stride * np.arange(1, self.cfg.n_waypoints + 1)[None, :]
+        steps = self.k[:, None] + self._wp_stride * np.arange(1, self.cfg.n_waypoints + 1)[None, :]
         wp = np.take_along_axis(self.paths, np.minimum(steps, self._path_len - 1)[..., None], axis=1)
         rays = None
         if self.cfg.obstacle_obs:
@@ -743,7 +752,16 @@ class AmpPathEnv:
         self._clock += 1
         state = self.bodies.read_state()
         cfg = self.cfg
-        target = self.paths[np.arange(self.num_envs), np.minimum(self.t, self._path_len - 1)]
+        k = self.t.copy()
+        if self._recorded is not None and cfg.recorded_lag_s > 0:
+            held = np.flatnonzero(self._rec_person >= 0)
+            if held.size:
+                from navzoo.envs.amp_humans import progress_index  # the scenes' own rule
+
+                lag = int(round(cfg.recorded_lag_s * cfg.control_hz))
+                k[held] = progress_index(self.k[held], self.t[held], self.paths[held], state["root_pos"][held, :2], lag)
+        self.k = k
+        target = self.paths[np.arange(self.num_envs), np.minimum(self.k, self._path_len - 1)]
         err2 = np.sum((state["root_pos"][:, :2] - target) ** 2, axis=1)
         h = heading(state["root_quat"])
         u = np.cos(h) * state["root_lin_vel"][:, 0] + np.sin(h) * state["root_lin_vel"][:, 1]

@@ -112,6 +112,9 @@ class TrainArgs:
     # episodes instead of generated paths
     recorded_targets: str = ""
     recorded_prob: float = 0.0
+    # > 0: recorded targets wait for the body, at most this many seconds ahead (PathTaskConfig.recorded_lag_s; the
+    # scenes hold targets 0.3 s ahead)
+    recorded_lag_s: float = 0.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -143,7 +146,7 @@ def run(args: TrainArgs) -> dict[str, Any]:
                           amp_velocity=args.amp_velocity, amp_velocity_span=args.amp_velocity_span,
                           door_prob=args.door_prob, stance_reward=args.stance_reward,
                           replan_sync=bool(args.replan_sync), recorded_targets=args.recorded_targets or None,
-                          recorded_prob=args.recorded_prob)
+                          recorded_prob=args.recorded_prob, recorded_lag_s=args.recorded_lag_s)
     if task.recorded_prob > 0:
         from navzoo.agents.amp.path_env import load_recorded_targets
 
