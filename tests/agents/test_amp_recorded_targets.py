@@ -209,3 +209,23 @@ def test_with_recorded_lag_the_target_waits_for_the_body(tmp_path, reference):
     assert (t[walks] == 20).all() and (k[walks] <= 9 + 3).all()  # 0.3 s ahead of a body that hardly moved
     with pytest.raises(ValueError, match="recorded_lag_s"):
         PathTaskConfig(recorded_lag_s=-0.1)
+
+
+def test_a_held_target_never_goes_back_to_an_earlier_path(tmp_path, reference):
+    # the second update turns the person round: its path runs back over the first one's points
+    k = np.arange(226)[:, None] * DT
+    ahead = np.concatenate([1.0 * k, 0 * k], axis=1)
+    back = np.concatenate([-1.0 * k, 0 * k], axis=1)
+    f = _write(tmp_path / "rec.npz", up_steps=90, paths=np.stack([ahead, back]).astype(np.float32))
+    env = AmpPathEnv(1, reference, PathTaskConfig(episode_seconds=3.0, rsi_prob=0.0, recorded_targets=f,
+                                                  recorded_prob=1.0, recorded_lag_s=0.3), seed=0)
+    env.reset(seed=0)
+    env.k[:] = 40  # the body is on its first path, 40 steps in; the turn comes at step 60 of the recording
+    env.t[:] = 60
+    state = env.bodies.read_state()
+    env._step_recorded(state)
+    assert env._k_from[0] == 40
+    for _ in range(10):
+        env.step(np.zeros((1, env.act_dim)))
+        assert env.k[0] >= 40  # not back on the first path's points, though the body stands among them
+    env.close()

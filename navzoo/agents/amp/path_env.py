@@ -331,6 +331,7 @@ class AmpPathEnv:
         self.paths = np.zeros((self.num_envs, self._path_len, 2))
         self.t = np.zeros(self.num_envs, dtype=int)
         self.k = np.zeros(self.num_envs, dtype=int)  # each env's target index (the clock, self.t, unless held)
+        self._k_from = np.zeros(self.num_envs, dtype=int)  # where each env's current recorded path starts
         self._clock = 0  # control steps since construction (replan_sync)
         self._window = np.zeros((self.num_envs, self.cfg.amp_window, FEATURE_DIM))
         self.stance = np.zeros(self.num_envs)  # running mean of features.foot_split (STANCE_TAU_S), per humanoid
@@ -597,6 +598,7 @@ class AmpPathEnv:
         if at_body:
             seg = seg - seg[0]
         t = int(self.k[i])  # from the target index on (the clock's, unless the target waits for the body)
+        self._k_from[i] = t
         m = min(len(seg), self._path_len - t)
         self.paths[i, t:t + m] = pos + seg[:m]
         self.paths[i, t + m:] = self.paths[i, t + m - 1]
@@ -756,10 +758,13 @@ class AmpPathEnv:
         if self._recorded is not None and cfg.recorded_lag_s > 0:
             held = np.flatnonzero(self._rec_person >= 0)
             if held.size:
-                from navzoo.envs.amp_humans import progress_index  # the scenes' own rule
-
+                # the scenes' rule (navzoo.envs.amp_humans.progress_index): one step further, but at most `lag` steps
+                # ahead of the path point nearest the body, searched on the current path only (up to the clock)
                 lag = int(round(cfg.recorded_lag_s * cfg.control_hz))
-                k[held] = progress_index(self.k[held], self.t[held], self.paths[held], state["root_pos"][held, :2], lag)
+                d = np.linalg.norm(self.paths[held] - state["root_pos"][held, None, :2], axis=2)
+                j = np.arange(self._path_len)[None, :]
+                d = np.where((j >= self._k_from[held, None]) & (j <= self.t[held, None]), d, np.inf)
+                k[held] = np.minimum(np.minimum(self.k[held] + 1, self.t[held]), np.argmin(d, axis=1) + lag)
         self.k = k
         target = self.paths[np.arange(self.num_envs), np.minimum(self.k, self._path_len - 1)]
         err2 = np.sum((state["root_pos"][:, :2] - target) ** 2, axis=1)
