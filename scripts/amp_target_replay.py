@@ -112,10 +112,10 @@ def replay(updates: list[tuple], heading0: float, up_s: float, seed: int, policy
 def save_targets(path: str, recordings: list[dict]) -> int:
     """Write the target updates of every person of ``recordings`` (:func:`record`'s) to ``path`` (an .npz of plain
     arrays, :func:`navzoo.agents.amp.path_env.load_recorded_targets`); returns the number of people."""
-    people = [(rec["updates"][j], int(round(rec["up_s"][j] / rec["dt"]))) for rec in recordings
-              for j in range(len(rec["updates"])) if rec["updates"][j]]
     from navzoo.agents.amp.path_env import pack_recorded_paths
 
+    people = [(rec["updates"][j], int(round(rec["up_s"][j] / rec["dt"]))) for rec in recordings
+              for j in range(len(rec["updates"])) if rec["updates"][j]]
     ups = [u for upd, _ in people for u in upd]
     np.savez_compressed(
         path, person_start=np.cumsum([0] + [len(upd) for upd, _ in people]).astype(np.int64),
@@ -133,11 +133,11 @@ def run_scene(scene: str, n: int, seed: int, seconds: float, policy_dir: str | N
     rec = record(scene, n, seed, seconds, policy_dir)
     if recordings is not None:
         recordings.append(rec)
+    if not do_replay:
+        return []
     lone = policy_dir if replay_dir is None else replay_dir
     rows = []
     for j in range(n):
-        if not do_replay:
-            continue
         r = replay(rec["updates"][j], float(rec["heading0"][j]), float(rec["up_s"][j]), seed, lone)
         rows.append({"scene": scene, "pedestrians": n, "seed": seed, "policy": policy_dir, "replay_policy": lone,
                      "person": j,

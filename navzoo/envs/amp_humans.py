@@ -524,9 +524,11 @@ def advance_waypoint(path: np.ndarray, k: int, pos: np.ndarray, tol: float, look
     return k
 
 
-def progress_index(k_prev: np.ndarray, k_time: np.ndarray, paths: np.ndarray, pos: np.ndarray, lag: int) -> np.ndarray:
+def progress_index(k_prev: np.ndarray, k_time: np.ndarray, paths: np.ndarray, pos: np.ndarray, lag: int,
+                   k_min: np.ndarray | None = None) -> np.ndarray:
     """Current target index of each body: one step further than before, as time goes, but at most
-    ``lag`` steps ahead of the point of its path nearest to the body (searched up to ``k_time``).
+    ``lag`` steps ahead of the point of its path nearest to the body (searched up to ``k_time``, and from ``k_min``
+    on where given: the index the current path starts at, when earlier indices hold an earlier path).
 
     Args:
         k_prev: (H,) previous indices.
@@ -534,11 +536,16 @@ def progress_index(k_prev: np.ndarray, k_time: np.ndarray, paths: np.ndarray, po
         paths: (H, L, 2) target paths, one point per control step.
         pos: (H, 2) the bodies' positions.
         lag: the largest lead (control steps) of the target over the body's projection.
+        k_min: (H,) the first index searched (default 0).
     """
     L = paths.shape[1]
     k_time = np.minimum(k_time, L - 1)
     d = np.linalg.norm(paths - pos[:, None, :], axis=2)
-    d = np.where(np.arange(L)[None, :] <= k_time[:, None], d, np.inf)
+    j = np.arange(L)[None, :]
+    searched = j <= k_time[:, None]
+    if k_min is not None:
+        searched &= j >= np.asarray(k_min)[:, None]
+    d = np.where(searched, d, np.inf)
     k_near = np.argmin(d, axis=1)
     return np.minimum(np.minimum(k_prev + 1, k_time), k_near + lag)
 

@@ -251,6 +251,12 @@ def _interp_knots(values: np.ndarray, knots: np.ndarray, length: int) -> np.ndar
     return values[:, j] * (1.0 - w) + values[:, j + 1] * w
 
 
+def _turn_matrix(turn: float) -> np.ndarray:
+    """Right-multiplying row vectors (P, 2) by this turns them by ``turn`` rad counter-clockwise."""
+    c, s = np.cos(turn), np.sin(turn)
+    return np.array([[c, s], [-s, c]])
+
+
 def _load_recorded_file(path: str, control_hz: int) -> RecordedTargets:
     try:
         with np.load(path, allow_pickle=False) as d:
@@ -540,10 +546,11 @@ class AmpPathEnv:
         head = heading(state["root_quat"][idx])
         for k, i in enumerate(idx):
             best = None
+            boxed = len(self._patch_segments[self.patch[i]]) > 0
             # In a patch with boxes (or a wall), draw again (at most RECORDED_DRAWS times) while the episode's targets
             # would come within RECORDED_CLEARANCE of them: the recording knows nothing of the patch's obstacles, and
             # a target path through a box asks the body to walk into it. The draw clearest of them is kept.
-            for _ in range(RECORDED_DRAWS if len(self._patch_segments[self.patch[i]]) else 1):
+            for _ in range(RECORDED_DRAWS if boxed else 1):
                 p = int(self.rng.integers(len(rec.up_steps)))
                 lo, hi = int(rec.person_start[p]), int(rec.person_start[p + 1])
                 offset = int(self.rng.integers(max(0, int(rec.up_steps[p]) - self.episode_steps) + 1))
@@ -551,7 +558,7 @@ class AmpPathEnv:
                 turn = float(head[k]) - float(rec.heading[u])
                 clear = (float(self._clearance(int(i), self._recorded_course(u, hi, offset, turn,
                                                                               state["root_pos"][i, :2])).min())
-                         if len(self._patch_segments[self.patch[i]]) else np.inf)
+                         if boxed else np.inf)
                 if best is None or clear > best[0]:
                     best = (clear, p, hi, offset, u, turn)
                 if clear >= RECORDED_CLEARANCE:
@@ -568,8 +575,7 @@ class AmpPathEnv:
         at recording step ``offset``, turned by ``turn`` and anchored at ``pos``, if the body moved with its targets:
         each later update is placed where the target of the update before it stood when it came."""
         rec = self._recorded
-        c, s = np.cos(turn), np.sin(turn)
-        rot = np.array([[c, s], [-s, c]])
+        rot = _turn_matrix(turn)
         stop = offset + self.episode_steps
         last = rec.paths.shape[1] - 1
         pts, base, now = [], np.asarray(pos, dtype=float), offset
@@ -591,10 +597,9 @@ class AmpPathEnv:
         """Env ``i``'s path from now on: recorded update ``u`` turned by the env's turn and placed at ``pos`` (its
         origin, the recorded body, at the body; with ``at_body``, its point of now at the body)."""
         rec = self._recorded
-        c, s = np.cos(self._rec_turn[i]), np.sin(self._rec_turn[i])
         now = self._rec_offset[i] + int(self.t[i])
         k0 = int(np.clip(now - rec.plan_t[u], 0, rec.paths.shape[1] - 1))
-        seg = rec.paths[u, k0:] @ np.array([[c, s], [-s, c]])
+        seg = rec.paths[u, k0:] @ _turn_matrix(self._rec_turn[i])
         if at_body:
             seg = seg - seg[0]
         t = int(self.k[i])  # from the target index on (the clock's, unless the target waits for the body)
@@ -758,13 +763,12 @@ class AmpPathEnv:
         if self._recorded is not None and cfg.recorded_lag_s > 0:
             held = np.flatnonzero(self._rec_person >= 0)
             if held.size:
-                # the scenes' rule (navzoo.envs.amp_humans.progress_index): one step further, but at most `lag` steps
-                # ahead of the path point nearest the body, searched on the current path only (up to the clock)
+                # the scenes' rule, searched on the current recorded path only
+                from navzoo.envs.amp_humans import progress_index
+
                 lag = int(round(cfg.recorded_lag_s * cfg.control_hz))
-                d = np.linalg.norm(self.paths[held] - state["root_pos"][held, None, :2], axis=2)
-                j = np.arange(self._path_len)[None, :]
-                d = np.where((j >= self._k_from[held, None]) & (j <= self.t[held, None]), d, np.inf)
-                k[held] = np.minimum(np.minimum(self.k[held] + 1, self.t[held]), np.argmin(d, axis=1) + lag)
+                k[held] = progress_index(self.k[held], self.t[held], self.paths[held], state["root_pos"][held, :2],
+                                         lag, k_min=self._k_from[held])
         self.k = k
         target = self.paths[np.arange(self.num_envs), np.minimum(self.k, self._path_len - 1)]
         err2 = np.sum((state["root_pos"][:, :2] - target) ** 2, axis=1)
