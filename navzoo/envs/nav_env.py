@@ -960,14 +960,17 @@ class NavEnv(ParallelEnv):
         if self.door_turns is None or H == 0:
             return np.zeros(H, dtype=bool)
         R = self.n_robots
-        jambs = float(amp_humans.DOOR_JAMB_SEARCH) if self.config.human_model == "amp" else 0.0
+        amp = self.config.human_model == "amp"
+        jambs = float(amp_humans.DOOR_JAMB_SEARCH) if amp else 0.0
+        scan = bool(amp_humans.DOOR_RUN_SCAN) if amp else False
         for j in range(H):
             i = R + j
             if self._door_paths[j] is not self.paths[i]:
                 self._door_paths[j] = self.paths[i]
                 rest = self.paths[i][int(self.wp_index[i]):]
                 self.door_turns.set_route(j, [(c, a) for c, a, _ in path_doors(rest, self.pos[i], self.grid, two_sided=True,
-                                                                                    end_margin=0.7, jamb_search=jambs)])
+                                                                                    end_margin=0.7, jamb_search=jambs,
+                                                                                    run_scan=scan)])
         return self.door_turns.update(t, self.pos[R:], ~self.arrived[R:] & ~self.human_fallen)
 
     def _fallen_lying(self) -> dict[int, np.ndarray]:

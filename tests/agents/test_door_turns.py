@@ -161,25 +161,72 @@ def test_a_door_entered_slantwise_is_found_on_its_jambs():
     assert len(a0) == len(a1) == 1 and np.array_equal(a0[0][0], a1[0][0])
 
 
+def test_a_door_entered_round_a_jambs_corner_is_found_by_the_run_scan():
+    # a path planned in the doorway scene (seed 0): it comes diagonally from the south-west, hugs the south jamb's
+    # corner and crosses the 1.0 m door at y = 3.95. Its narrowest point is at that corner, outside the door, where
+    # the jamb cells give the wall's direction as the axis, so neither the narrowest point nor the jamb search finds
+    # the door; the run scan takes the stretch's next narrowest points and finds it on the jamb line
+    grid = OccupancyGrid.from_scene(get_scene("doorway"))
+    start = np.array([4.69, 0.56])
+    path = np.array([[5.3, 1.24], [5.61, 1.58], [5.91, 1.92], [6.22, 2.25], [6.52, 2.59], [6.83, 2.93], [7.14, 3.27],
+                     [7.44, 3.61], [7.75, 3.95], [8.1, 3.95], [8.45, 3.95], [8.84, 3.69], [9.23, 3.43], [9.62, 3.17],
+                     [10.01, 2.92], [10.4, 2.66], [10.79, 2.4], [11.18, 2.14], [11.57, 1.88], [11.96, 1.62]])
+    kw = dict(two_sided=True, end_margin=0.7)
+    assert path_doors(path, start, grid, **kw) == []
+    assert path_doors(path, start, grid, jamb_search=0.3, **kw) == []
+    doors = path_doors(path, start, grid, run_scan=True, **kw)
+    assert len(doors) == 1
+    c, a, _ = doors[0]
+    assert abs(c[0] - 8.0) < 0.15 and 3.5 < c[1] < 4.5 and a[0] > 0.99  # on the door's line, crossed eastward
+    # a door the narrowest point finds stays where it was, and no door appears along a single wall
+    straight = np.array([[4.0, 4.0], [8.0, 4.0], [12.0, 4.0]])
+    a0 = path_doors(straight, np.array([3.0, 4.0]), grid, **kw)
+    a1 = path_doors(straight, np.array([3.0, 4.0]), grid, run_scan=True, **kw)
+    assert len(a0) == len(a1) == 1 and np.array_equal(a0[0][0], a1[0][0])
+    along_wall = np.array([[12.0, 0.5], [15.5, 0.5], [15.5, 7.0]])
+    assert path_doors(along_wall, np.array([10.5, 0.5]), grid, run_scan=True, **kw) == []
+    # a door at either end of the path is still left out, whichever of its points has the jambs
+    assert path_doors(path[:9], start, grid, run_scan=True, **kw) == []
+
+
+def test_the_run_scan_adds_no_passage_two_people_pass_in(monkeypatch):
+    # the held-out bottleneck's passage is 1.2 m wide: two bodies pass each other there, and the run scan adds no
+    # door in it, while without the width limit it would
+    from navzoo.envs import doors
+
+    grid = OccupancyGrid.from_scene(get_scene("bottleneck"))
+    kw = dict(two_sided=True, end_margin=0.7, run_scan=True)
+    starts = [np.array([4.0, y]) for y in np.linspace(1.5, 6.5, 11)]
+    goal = np.array([11.0, 4.0])
+    paths = [np.array([[6.5, 4.0 + 0.6 * (s[1] - 4.0) / 2.5], [7.0, 3.9], [8.5, 4.1], goal]) for s in starts]
+    plain = [path_doors(p, s, grid, two_sided=True, end_margin=0.7) for s, p in zip(starts, paths, strict=True)]
+    scanned = [path_doors(p, s, grid, **kw) for s, p in zip(starts, paths, strict=True)]
+    assert [len(x) for x in scanned] == [len(x) for x in plain]
+    monkeypatch.setattr(doors, "DOOR_SCAN_MAX_WIDTH", 2.0)
+    wide = [path_doors(p, s, grid, **kw) for s, p in zip(starts, paths, strict=True)]
+    assert sum(len(x) for x in wide) > sum(len(x) for x in plain)
+
+
 def test_the_jamb_search_option_reaches_the_door_turns_of_physics_pedestrians(monkeypatch):
     from navzoo.envs import amp_humans, nav_env
 
     seen = []
 
     def spy(*args, **kw):
-        seen.append(kw.get("jamb_search"))
+        seen.append((kw.get("jamb_search"), kw.get("run_scan")))
         return []
 
     monkeypatch.setattr(nav_env, "path_doors", spy)
     monkeypatch.setattr(amp_humans, "DOOR_JAMB_SEARCH", 0.3)
+    monkeypatch.setattr(amp_humans, "DOOR_RUN_SCAN", True)
     env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="kinematic", human_door_turns=True)
     env.reset(seed=0)
-    assert seen and set(seen) == {0.0}  # kinematic crowds: never
+    assert seen and set(seen) == {(0.0, False)}  # kinematic crowds: never
     env.close()
     seen.clear()
     env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp")  # door turns on by default
     env.reset(seed=0)
-    assert seen and set(seen) == {0.3}
+    assert seen and set(seen) == {(0.3, True)}
     env.close()
 
 
