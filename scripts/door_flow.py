@@ -15,7 +15,11 @@ counts, per trace and pooled:
   share of those times with nobody in the door (the holder is on its way, or stands elsewhere), ``waits`` the share
   with someone waiting for this door, ``waits_empty`` those with nobody in the door;
 - ``dwell_s``: the median time from entering the door to reaching the other side, per crossing;
-- ``holder_standing``: the share of the holders' time that they stand (slower than the trace's ``still_mps``).
+- ``holder_standing``: the share of the holders' time that they stand (slower than the trace's ``still_mps``);
+- ``unturned``: of the samples within ``--reach`` m of the door whose goal lies on the other side of the door's
+  line, the share with no door turn at all (``door_state`` "none": the door turns found no door on the person's
+  path, so it neither asks for the door nor waits for it). Meant for a door in a wall across the whole scene (the
+  doorway), where every such person must cross this door; traces without ``goal`` fields give None.
 
 A person's samples belong to this door when its next door's distance (``door_m``) is its distance to ``--centre``
 (within ``SAME_DOOR_M``: door turns place a door's centre on the people's paths, a few centimetres off the scene's).
@@ -44,7 +48,7 @@ def _pair(text: str, name: str) -> np.ndarray:
 
 
 def flow(trace: dict, centre: np.ndarray, normal: np.ndarray, depth: float = 0.75, half_width: float = 0.7,
-         side: float = 0.5) -> dict:
+         side: float = 0.5, reach: float = 2.5) -> dict:
     """The door figures of one trace (see the module's docstring); ``counts`` holds the sums for pooling."""
     samples, dt, still = trace["samples"], float(trace["every_s"]), float(trace["still_mps"])
     n = normal / np.linalg.norm(normal)
@@ -96,6 +100,11 @@ def flow(trace: dict, centre: np.ndarray, normal: np.ndarray, depth: float = 0.7
         if s.get("door_state") == "held" and this_door(s):
             c["holder"] += 1
             c["holder_standing"] += s["speed"] < still
+        if "goal" in s and np.hypot(s["x"] - centre[0], s["y"] - centre[1]) < reach:
+            g = float((np.asarray(s["goal"], dtype=float) - centre) @ n)
+            if g * along(s) < 0:  # its goal is across the door's line
+                c["across"] += 1
+                c["unturned"] += s.get("door_state") == "none"
     seconds = c["times"] * dt
     return {"goals": trace.get("goals"), "seed": trace.get("seed"), "crowd": trace.get("crowd"),
             **_rates(c, seconds), "dwell_s": float(np.median(dwell)) if dwell else None,
@@ -106,7 +115,8 @@ def _rates(c: collections.Counter, seconds: float) -> dict:
     times = max(c["times"], 1)
     return {"crossings": c["crossings"], "per_min": round(c["crossings"] / max(seconds, 1e-9) * 60.0, 2),
             **{k: round(c[k] / times, 3) for k in ("busy", "held", "held_empty", "waits", "waits_empty")},
-            "holder_standing": round(c["holder_standing"] / max(c["holder"], 1), 3)}
+            "holder_standing": round(c["holder_standing"] / max(c["holder"], 1), 3),
+            "unturned": round(c["unturned"] / c["across"], 3) if c["across"] else None}
 
 
 def pooled(rows: list[dict]) -> dict:
@@ -127,12 +137,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--depth", type=float, default=0.75, help="m along the normal that count as in the door")
     ap.add_argument("--half-width", type=float, default=0.7, help="m across that count as in the door")
     ap.add_argument("--side", type=float, default=0.5, help="m along the normal beyond which a person is on a side")
+    ap.add_argument("--reach", type=float, default=2.5, help="m from the centre within which 'unturned' counts")
     ap.add_argument("--json", action="store_true", help="one JSON line per trace and one for the pool")
     args = ap.parse_args(argv)
     centre, normal = _pair(args.centre, "--centre"), _pair(args.normal, "--normal")
     if np.linalg.norm(normal) == 0:
         raise SystemExit("--normal must not be zero")
-    for name in ("depth", "half_width", "side"):
+    for name in ("depth", "half_width", "side", "reach"):
         if not (np.isfinite(getattr(args, name)) and getattr(args, name) > 0):
             raise SystemExit(f"--{name.replace('_', '-')} must be a finite number > 0")
     rows = []
@@ -140,11 +151,12 @@ def main(argv: list[str] | None = None) -> int:
         try:
             with open(path) as f:
                 trace = json.load(f)
-            rows.append(flow(trace, centre, normal, args.depth, args.half_width, args.side))
+            rows.append(flow(trace, centre, normal, args.depth, args.half_width, args.side, args.reach))
         except (OSError, ValueError, KeyError) as e:
             raise SystemExit(f"{path}: not a trace of scripts/amp_stand_trace.py ({e})") from None
         rows[-1]["file"] = path
-    keys = ("crossings", "per_min", "busy", "held", "held_empty", "waits", "waits_empty", "dwell_s", "holder_standing")
+    keys = ("crossings", "per_min", "busy", "held", "held_empty", "waits", "waits_empty", "dwell_s", "holder_standing",
+            "unturned")
     groups: dict[str, list[dict]] = collections.defaultdict(list)
     for r in rows:
         groups[str(r["crowd"])].append(r)

@@ -38,6 +38,26 @@ def test_one_crossing_with_a_waiting_person():
     assert p["traces"] == 2 and p["crossings"] == 2 and p["busy"] == r["busy"] and p["goals"] == 2
 
 
+def test_unturned_counts_people_bound_across_the_door_without_a_door_turn():
+    flow = load_script("door_flow")
+    tr = _trace()
+    assert flow.flow(tr, np.array([8.0, 4.0]), np.array([1.0, 0.0]))["unturned"] is None  # no goals in the trace
+    for s in tr["samples"]:
+        s["goal"] = [12.0, 4.0]  # both bound east, across the door
+    tr["samples"].append({"t": 0.0, "id": 2, "x": 7.0, "y": 5.0, "speed": 0.0, "door_state": "none", "door_m": 1e9,
+                          "goal": [10.0, 6.0]})  # no door turn, its goal across: counts
+    tr["samples"].append({"t": 0.0, "id": 3, "x": 7.0, "y": 6.0, "speed": 0.0, "door_state": "none", "door_m": 1e9,
+                          "goal": [3.0, 6.0]})  # its goal on its own side: not counted
+    tr["samples"].append({"t": 0.0, "id": 4, "x": 2.0, "y": 4.0, "speed": 0.0, "door_state": "none", "door_m": 1e9,
+                          "goal": [12.0, 4.0]})  # beyond --reach: not counted
+    r = flow.flow(tr, np.array([8.0, 4.0]), np.array([1.0, 0.0]))
+    # within 2.5 m and bound across: person 0 at x = 6.0 ... 7.5 (4 samples; at 8.0 it is on the line, beyond it its
+    # goal is on its side), person 1 (9 samples), person 2 (1): one of 14 has no door turn
+    assert r["unturned"] == pytest.approx(1 / 14, abs=1e-3)
+    p = flow.pooled([r, r])
+    assert p["unturned"] == r["unturned"]
+
+
 def test_main_prints_rows_and_refuses_bad_input(tmp_path, capsys):
     flow = load_script("door_flow")
     f = tmp_path / "t.json"
