@@ -150,10 +150,14 @@ DIFFUSION_DOOR_GRANT_STALL_S = 3.0
 DOOR_JAMB_SEARCH = 0.0
 # DOOR_RUN_SCAN: when a path's narrowest point in a narrow stretch has no jambs on both sides (or gives no door axis:
 # a path that hugs a jamb's corner on its way in has its narrowest point at the corner, outside the door), the
-# stretch's other points are tried, narrowest first (path_doors' run_scan). In the doorway, 5 of the 29 paths planned
+# stretch's other points are tried, narrowest first (path_doors' run_scan). In the doorway, 6 of the 29 paths planned
 # through its door in 100 s of seed 0 got no door turn, and those people walked into the door against the queue
-# (docs/crowd_log.md, "Doors missed at the jamb's corner").
+# (docs/crowd_log.md, "Doors missed at the jamb's corner"). DIFFUSION_DOOR_RUN_SCAN with diffusion targets (on since
+# 2026-12-07: the doorway ahead on both CPUs, +10.0 / +6.0 successes per run on the Intel device / AMD VM, seeds 0-7, the
+# home and the held-out door scenes level), DOOR_RUN_SCAN with the other target generators (off: with social-force
+# targets level on the Intel device, more falls).
 DOOR_RUN_SCAN = False
+DIFFUSION_DOOR_RUN_SCAN = True
 # Plans are sampled from each person's recent past, so a body that has stopped (a yield, a push, a jam at a door)
 # gets slow plans; its target then creeps (the rollout toward a slow plan, slowed further by a jamb the body stands
 # next to) and the controller does not walk toward a target that slow, least of all one behind it (a lone body

@@ -962,7 +962,8 @@ class NavEnv(ParallelEnv):
         R = self.n_robots
         amp = self.config.human_model == "amp"
         jambs = float(amp_humans.DOOR_JAMB_SEARCH) if amp else 0.0
-        scan = bool(amp_humans.DOOR_RUN_SCAN) if amp else False
+        scan = amp and bool(amp_humans.DIFFUSION_DOOR_RUN_SCAN if self.config.crowd_model == "diffusion"
+                            else amp_humans.DOOR_RUN_SCAN)
         for j in range(H):
             i = R + j
             if self._door_paths[j] is not self.paths[i]:

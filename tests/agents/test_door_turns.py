@@ -228,6 +228,20 @@ def test_the_jamb_search_option_reaches_the_door_turns_of_physics_pedestrians(mo
     env.reset(seed=0)
     assert seen and set(seen) == {(0.3, True)}
     env.close()
+    # the run scan: on by default with diffusion targets only (DIFFUSION_DOOR_RUN_SCAN), DOOR_RUN_SCAN for the others
+    monkeypatch.setattr(amp_humans, "DOOR_RUN_SCAN", False)
+    for crowd, want in (("sfm", False), ("diffusion", True)):
+        seen.clear()
+        env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp", crowd_model=crowd, time_limit=5.0)
+        env.reset(seed=0)
+        assert seen and {r for _, r in seen} == {want}, crowd
+        env.close()
+    monkeypatch.setattr(amp_humans, "DIFFUSION_DOOR_RUN_SCAN", False)
+    seen.clear()
+    env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp", crowd_model="diffusion", time_limit=5.0)
+    env.reset(seed=0)
+    assert seen and {r for _, r in seen} == {False}
+    env.close()
 
 
 def _goals(scene: str, n: int, doors: bool, seconds: float) -> tuple[int, int]:
