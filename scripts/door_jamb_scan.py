@@ -7,10 +7,11 @@ For each scene, draws ``--paths`` start/goal pairs from the scene's pedestrian g
 with a physics pedestrian's A* planner (``NavEnv._plan``: the AMP plan margin and door entries) and finds the path's
 doors as the door turns do (``navzoo.envs.doors.path_doors``, two-sided, 0.7 m end margin), once as by default and
 once with ``jamb_search=--search`` (``amp_humans.DOOR_JAMB_SEARCH``; with ``--run-scan`` also ``run_scan``,
-``amp_humans.DOOR_RUN_SCAN``: the narrow stretch's other points tried when its narrowest has no door). Prints, per scene, how many paths have a
-door without and with the search, how many get a different list of doors, and the doors found only with the
-search (centre rounded to 0.1 m: number of paths; ``new_widths``: their free width across the door there, m). A static check of the door detection; what it does to the crowds
-is measured by the following protocol.
+``amp_humans.DIFFUSION_DOOR_RUN_SCAN`` / ``DOOR_RUN_SCAN``: the narrow stretch's other points tried when its narrowest
+has no door). Prints, per scene, how many paths have a door without and with the search, how many get a different
+list of doors, and the doors found only with the search (centre rounded to 0.1 m: number of paths; ``new_widths``:
+their free width across the door there, m). A static check of the door detection; what it does to the crowds is
+measured by the following protocol.
 """
 
 from __future__ import annotations
