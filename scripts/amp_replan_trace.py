@@ -84,16 +84,12 @@ def main(argv: list[str] | None = None) -> int:
                     help="upper-case numeric or boolean constant of navzoo.envs.amp_humans, repeatable")
     ap.add_argument("--json", default=None, help="also write the rows here")
     args = ap.parse_args(argv)
-    from amp_stand_trace import parse_const
+    from amp_stand_trace import apply_const
 
     try:
-        consts = parse_const(args.const)
+        consts = apply_const(args.const)
     except ValueError as e:
         ap.error(str(e))
-    from navzoo.envs import amp_humans
-
-    for name, value in consts.items():
-        setattr(amp_humans, name, value)
     try:
         rows = trace(args.scene, args.people, args.seed, args.t_from, args.until, policy_dir=args.policy)
     except ValueError as e:

@@ -173,6 +173,17 @@ def parse_const(items: list[str]) -> dict[str, float | int | bool]:
     return out
 
 
+def apply_const(items: list[str]) -> dict[str, float | int | bool]:
+    """:func:`parse_const` the ``--const`` items and set them on ``navzoo.envs.amp_humans``; returns them (ValueError
+    naming a bad item, before anything is set)."""
+    consts = parse_const(items)
+    from navzoo.envs import amp_humans
+
+    for name, value in consts.items():
+        setattr(amp_humans, name, value)
+    return consts
+
+
 def classify(s: dict, still: float) -> str:
     """The cause of one standing sample (see the module doc)."""
     if s["target_m"] < NEAR_TARGET_M and s["target_speed"] < still:
@@ -348,13 +359,9 @@ def main() -> None:
     try:
         settings = check_diffusion_settings(_settings(args.diffusion_set))
         overrides = env_set_option("amp_stand_trace.py", args.env_set)
-        consts = parse_const(args.const)
+        consts = apply_const(args.const)
     except ValueError as e:
         ap.error(str(e))
-    from navzoo.envs import amp_humans
-
-    for name, value in consts.items():
-        setattr(amp_humans, name, value)
     result = trace(args.scene, args.people, args.crowd, args.seconds, args.seed, args.every, args.still, args.policy,
                    settings, overrides)
     result["const"] = consts

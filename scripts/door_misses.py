@@ -92,11 +92,11 @@ def run(scene: str, people: int, crowd: str, seconds: float, seed: int) -> dict:
     def spy(self, t: float = 0.0):
         R = self.n_robots
         changed = [j for j in range(self.n_humans) if self._door_paths[j] is not self.paths[R + j]]
-        seen: dict[int, list] = {}
+        seen: list[tuple] = []
 
         def recording(path, start, grid, **kw):
             doors = real_path_doors(path, start, grid, **kw)
-            seen[len(seen)] = [path, start, kw, doors]
+            seen.append((path, start, kw, doors))
             return doors
 
         nav_env.path_doors = recording
@@ -104,7 +104,7 @@ def run(scene: str, people: int, crowd: str, seconds: float, seed: int) -> dict:
             out = original(self, t)
         finally:
             nav_env.path_doors = real_path_doors
-        for j, (path, start, kw, doors) in zip(changed, seen.values(), strict=True):
+        for j, (path, start, kw, doors) in zip(changed, seen, strict=True):
             base = {k: v for k, v in kw.items() if k not in ("jamb_search", "run_scan")}
             records.append({
                 "t": round(float(self.sim_time), 2), "person": j,
@@ -146,16 +146,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.people < 1 or not args.seconds > 0:
         ap.error("--people must be >= 1 and --seconds > 0")
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from amp_stand_trace import parse_const
+    from amp_stand_trace import apply_const
 
     try:
-        consts = parse_const(args.const)
+        consts = apply_const(args.const)
     except ValueError as e:
         ap.error(str(e))
-    from navzoo.envs import amp_humans
-
-    for name, value in consts.items():
-        setattr(amp_humans, name, value)
     r = {**run(args.scene, args.people, args.crowd, args.seconds, args.seed), "const": consts}
     print(f"{r['scene']} ({r['people']} people, {r['crowd']}, seed {r['seed']}, {r['seconds']:g} s): {r['paths']} paths, "
           f"{r['crossings']} door crossings, {r['missed']} without their door (the jamb search finds "

@@ -100,13 +100,12 @@ def path_doors(path: np.ndarray, start: np.ndarray, grid: OccupancyGrid, half_wi
         found = _door_at(grid, pts, d, m, line, half_width, two_sided, end_margin, jamb_search)
         if found is None and run_scan and two_sided:
             for k in a + np.argsort(d[a:b], kind="stable"):
-                if k != m:
-                    found = _door_at(grid, pts, d, int(k), line, half_width, two_sided, end_margin, 0.0)
-                    if found is not None and _passage_width(grid, found[0], found[1], 2.0 * half_width) \
-                            >= DOOR_SCAN_MAX_WIDTH:
-                        found = None
-                    if found is not None:
-                        break
+                if k == m:
+                    continue
+                door = _door_at(grid, pts, d, int(k), line, half_width, two_sided, end_margin, 0.0)
+                if door is not None and _passage_width(grid, door[0], door[1], 2.0 * half_width) < DOOR_SCAN_MAX_WIDTH:
+                    found = door
+                    break
         if found is not None:
             out.append((found[0].copy(), found[1], float(d[m])))
     return out
