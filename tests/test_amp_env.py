@@ -585,3 +585,60 @@ def test_a_person_cut_off_from_every_new_goal_draws_fallen_goal_tries_goals_and_
     assert env.human_waiting_fallen[1]
     np.testing.assert_array_equal(env.goal[env.n_robots + 1], drawn[-1])
     env.close()
+
+
+@pytest.mark.parametrize("redraw", [False, True])
+def test_a_new_goal_cut_off_by_fallen_bodies_is_drawn_again_or_walked_on_the_scene_path(redraw):
+    """human_fallen_redraw: a body across the doorway's only door; person 1 reaches its goal in the left room.
+    Every goal across the door: off, it walks a straight line at the goal (into the wall); on, FALLEN_GOAL_TRIES
+    goals are drawn and the last is walked on the bare scene's A* path (through the door, on into the body), and
+    it does not wait. A goal on its own side among the draws: on, that goal is kept, with a path round the body."""
+    from navzoo.envs.fallen import FALLEN_GOAL_TRIES
+
+    env = _raw(scene="doorway", n_robots=0, n_humans=2, max_episode_steps_override=200, human_fallen_redraw=redraw)
+    env.reset(seed=1, options={"human_starts": [[2.0, 7.0], [5.0, 4.0]], "human_goals": [[2.0, 7.0], [13.0, 4.0]]})
+    body = np.array([[8.0, 4.0], [8.0, 3.2], [8.0, 4.8], [8.3, 3.5], [7.7, 4.5], [8.1, 4.0]])
+    env._fallen_lying = lambda: {0: body}
+    env.human_fallen[0] = env.amp.fallen[0] = True
+    env._avoid_fallen()
+    sampler, i = env._samplers["human"], env.n_robots + 1
+    drawn = []
+
+    def draw(goals):
+        def sample_goal(rng, pos, kind, min_goal_dist=0.0):
+            drawn.append(np.array(goals[min(len(drawn), len(goals) - 1)], dtype=float))
+            return drawn[-1]
+        return sample_goal
+
+    sampler.sample_goal = draw([[13.0, 3.5]])  # across the blocked door, every time
+    env.d_goal[env.n_robots] = 10.0
+    env.d_goal[i] = 0.0
+    env._retarget_humans()
+    assert not env.human_waiting_fallen[1]
+    np.testing.assert_array_equal(env.goal[i], [13.0, 3.5])
+    if not redraw:
+        assert len(drawn) == 1
+        np.testing.assert_array_equal(env.paths[i], [[13.0, 3.5]])
+    else:
+        assert len(drawn) == FALLEN_GOAL_TRIES
+        path = env.paths[i]
+        assert len(path) > 2 and env.grid.is_free(path).all()  # the scene's way, through the door
+        assert np.abs(path[:, 0] - 8.0).min() < 0.5 and np.abs(path[:, 1] - 4.0)[np.abs(path[:, 0] - 8.0) < 0.5].max() < 0.6
+    # a goal on its own side of the door after one across it
+    drawn.clear()
+    sampler.sample_goal = draw([[13.0, 3.5], [2.0, 2.0]])
+    env.d_goal[i] = 0.0
+    env._retarget_humans()
+    if redraw:
+        assert len(drawn) == 2
+        np.testing.assert_array_equal(env.goal[i], [2.0, 2.0])
+        assert env._fallen_grid.is_free(env.paths[i]).all()
+    else:
+        assert len(drawn) == 1
+        np.testing.assert_array_equal(env.paths[i], [[13.0, 3.5]])
+    env.close()
+
+
+def test_human_fallen_redraw_must_be_a_bool():
+    with pytest.raises(ValueError, match="human_fallen_redraw"):
+        NavConfig(human_fallen_redraw="yes")

@@ -91,6 +91,13 @@ class NavConfig:
             per limit with diffusion / social-force targets; held out -0.2 +- 0.1 / -0.7 +- 1.3); a traced corridor
             run fell 2 times instead of 7. On the Intel device (seeds 0-7) -0.7 +- 0.3 / -0.7 +- 0.9 points: a
             fifth fewer falls for more timeouts, so it stays off (docs/crowd_log.md, "People walk into the pile").
+        human_fallen_redraw: with ``human_fallen_obstacles``: a new goal that no path round the fallen bodies
+            reaches is drawn again (up to ``FALLEN_GOAL_TRIES`` times, as ``human_fallen_wait`` draws, without
+            the waiting), and a person left with none walks the A* path of the bare scene (on into the bodies, as
+            a person with no way round keeps its old path) instead of a straight line at its goal. Off: such a
+            person walks straight at the goal, through walls (a home run with a body in the bedroom's door: a
+            person pressed into the kitchen's wall toward a bedroom goal for 112 s, docs/crowd_log.md, "Goals
+            cut off by a fallen body").
         human_door_entries: physics (AMP) pedestrians' A* paths cross each door on its axis, from an
             entry point 0.7 m before it to an exit point 0.7 m after it (:mod:`navzoo.envs.doors`);
             off by default.
@@ -252,6 +259,7 @@ class NavConfig:
     human_contact_penalty: bool = True
     human_fallen_obstacles: bool = True
     human_fallen_wait: bool = False
+    human_fallen_redraw: bool = False
     human_door_entries: bool = False
     human_replan_blocked: Literal["amp", "all", "off"] = "off"
     human_speed: tuple[float, float] = (1.0, 1.4)
@@ -374,6 +382,8 @@ class NavConfig:
             raise bad("human_fallen_obstacles", "a bool")
         if not isinstance(self.human_fallen_wait, bool):
             raise bad("human_fallen_wait", "a bool")
+        if not isinstance(self.human_fallen_redraw, bool):
+            raise bad("human_fallen_redraw", "a bool")
         if not isinstance(self.human_door_entries, bool):
             raise bad("human_door_entries", "a bool")
         if not _is_int(self.scan_rays) or self.scan_rays < 0:

@@ -469,14 +469,16 @@ class NavEnv(ParallelEnv):
         once there are any (``human_fallen_obstacles``), robots on the bare scene grid."""
         return self._fallen_planner if i >= self.n_robots and self._fallen_grid is not None else self._planner
 
-    def _plan(self, i: int, start: np.ndarray, goal: np.ndarray, fallback: bool = True) -> np.ndarray | None:
+    def _plan(self, i: int, start: np.ndarray, goal: np.ndarray, fallback: bool = True,
+              scene_grid: bool = False) -> np.ndarray | None:
         """Agent ``i``'s A* path from ``start`` to ``goal`` (pedestrians around fallen bodies when the
-        config asks for it); without a path, the goal alone, or None when ``fallback`` is False."""
+        config asks for it, or on the bare scene grid with ``scene_grid``); without a path, the goal alone,
+        or None when ``fallback`` is False."""
         path = None
         clearance = self.config.path_clearance
         if self.config.human_model == "amp" and i >= self.n_robots:
             clearance += AMP_PLAN_MARGIN
-        planner = self._planner_for(i)
+        planner = self._planner if scene_grid else self._planner_for(i)
         bare = planner(float(self.radius[i]))
         if clearance > 0:
             padded = float(self.radius[i]) + clearance
@@ -1079,17 +1081,22 @@ class NavEnv(ParallelEnv):
                 goal = self._samplers["human"].sample_goal(self.rng_tasks, self.pos[i], "human",
                                                             min_goal_dist=self.config.min_goal_distance)
                 path = None
-                if self.config.human_fallen_wait and self._fallen_grid is not None and not self.human_fallen[j]:
-                    # fallen bodies may cut the way to the goal: draw again, and wait if none can be reached
+                wait, redraw = self.config.human_fallen_wait, self.config.human_fallen_redraw
+                cut = self._fallen_grid is not None and not self.human_fallen[j]
+                if (wait or redraw) and cut:
+                    # fallen bodies may cut the way to the goal: draw again, and wait (human_fallen_wait) or walk
+                    # the scene's path (human_fallen_redraw) if none can be reached
                     for attempt in range(FALLEN_GOAL_TRIES):
                         path = self._plan(i, self.pos[i], goal, fallback=False)
                         if path is not None or attempt == FALLEN_GOAL_TRIES - 1:
                             break  # (the last goal tried is kept: no untried goal is drawn after the last try)
                         goal = self._samplers["human"].sample_goal(self.rng_tasks, self.pos[i], "human",
                                                                     min_goal_dist=self.config.min_goal_distance)
-                    self.human_waiting_fallen[j] = path is None
+                    self.human_waiting_fallen[j] = path is None and wait
                 self.goal[i] = goal
-                self.paths[i] = path if path is not None else self._plan(i, self.pos[i], goal)
+                if path is None:  # (human_fallen_redraw: on the bare scene grid, not straight through walls)
+                    path = self._plan(i, self.pos[i], goal, scene_grid=redraw and cut and not wait)
+                self.paths[i] = path
                 self.wp_index[i] = 0
                 self.d_goal[i] = float(np.linalg.norm(goal - self.pos[i]))
         return reached
