@@ -6,7 +6,9 @@ that runs) and writes one JSON line per event to ``--trace``:
 - ``stamp``: the fallen bodies were stamped into the pedestrians' planning grid (a new fall, or a body that moved):
   who lies (``lying``), who got a path round them (``replanned``), and who is left with a path through them and no way
   round (``no_way_round``, with their positions ``pos``);
-- ``straight_line``: a pedestrian got a new goal to which no path leads on that grid, and walks a straight line.
+- ``straight_line``: a pedestrian got a new goal to which no path leads on that grid, and walks a straight line;
+- ``scene_path``: with ``NavConfig.human_fallen_redraw``, none of the goals drawn for a pedestrian is reached on that
+  grid, and it walks the last one's path on the bare scene grid (``points``: its length).
 
 The run's row goes to ``--out`` as usual; it repeats the row of the same run without the trace trip for trip.
 
@@ -44,11 +46,14 @@ def _trace(out: Path) -> None:
              "pos": {j: [round(float(v), 2) for v in self.pos[R + j]] for j in stuck}})
         return changed
 
-    def traced_plan(self, i, start, goal, fallback=True):
-        path = plan(self, i, start, goal, fallback)
-        if fallback and self._fallen_grid is not None and i >= self.n_robots and len(path) == 1 \
-                and np.array_equal(path[0], np.asarray(goal, dtype=np.float64)):
-            log({"t": round(self.sim_time, 2), "kind": "straight_line", "who": int(i - self.n_robots)})
+    def traced_plan(self, i, start, goal, fallback=True, scene_grid=False):
+        path = plan(self, i, start, goal, fallback, scene_grid)
+        if fallback and self._fallen_grid is not None and i >= self.n_robots:
+            who = {"t": round(self.sim_time, 2), "who": int(i - self.n_robots)}
+            if scene_grid:  # human_fallen_redraw: no goal drawn is reached round the bodies
+                log({**who, "kind": "scene_path", "points": len(path)})
+            elif len(path) == 1 and np.array_equal(path[0], np.asarray(goal, dtype=np.float64)):
+                log({**who, "kind": "straight_line"})
         return path
 
     ne.NavEnv._avoid_fallen, ne.NavEnv._plan = traced_avoid, traced_plan
