@@ -96,8 +96,10 @@ class NavConfig:
             the waiting), and a person left with none walks the A* path of the bare scene (on into the bodies, as
             a person with no way round keeps its old path) instead of a straight line at its goal. Off: such a
             person walks straight at the goal, through walls (a home run with a body in the bedroom's door: a
-            person pressed into the kitchen's wall toward a bedroom goal for 112 s, docs/crowd_log.md, "Goals
-            cut off by a fallen body").
+            person pressed into the kitchen's wall toward a bedroom goal for 112 s). On the AMD VM (seeds 0-7)
+            +0.4 +- 0.15 points per limit with diffusion targets (the home +3.0 successes per run), level with
+            social-force targets; off until the Intel device's rows run (docs/crowd_log.md, "Goals cut off by a
+            fallen body").
         human_door_entries: physics (AMP) pedestrians' A* paths cross each door on its axis, from an
             entry point 0.7 m before it to an exit point 0.7 m after it (:mod:`navzoo.envs.doors`);
             off by default.
