@@ -49,6 +49,11 @@ import numpy as np
 
 __all__ = ["DoorParams", "DoorTurns"]
 
+# DoorParams.spot_passage_only: a narrow point on the way back to a waiting spot is a passage when both points
+# PASSAGE_PROBE_M to either side of it across the door's axis are within PASSAGE_WALL_M of an obstacle (m)
+PASSAGE_PROBE_M = 0.6
+PASSAGE_WALL_M = 0.3
+
 
 @dataclass(frozen=True)
 class DoorParams:
@@ -72,6 +77,12 @@ class DoorParams:
             door at once only while nobody holds it the other way; otherwise it stops ``wait`` from the door's
             centre, in the passage, until the door is free (False: it always takes the door at once, so the
             passage stays clear and the two ways may meet in the door).
+        spot_passage_only: the way back to a waiting spot is refused for running into a second narrow passage
+            (:meth:`DoorTurns.spots`) only where the narrow point has obstacles within ``PASSAGE_WALL_M`` of both
+            points ``PASSAGE_PROBE_M`` to either side of it across the door's axis (a door across a corridor), not
+            where one piece of furniture stands beside the way (False: any point under 0.5 m from an obstacle after
+            the way got out in the open refuses the spot; the home's kitchen door then has no waiting spot on its
+            living-room side, beside the dining table, and people from there always take it at once).
     """
 
     approach: float = 2.5
@@ -86,6 +97,7 @@ class DoorParams:
     merge: float = 0.6
     spot_clearance: float = 0.35
     no_room_waits: bool = False
+    spot_passage_only: bool = False
 
     def __post_init__(self) -> None:
         for name in ("approach", "wait", "passed", "throat", "platoon_s", "grant_max_s", "grant_stall_gain", "merge",
@@ -196,7 +208,13 @@ class DoorTurns:
             # corridor): once out in the open (0.55 m from walls), it stays 0.5 m from them
             d_back = d_legs[:, : back.shape[1]]
             out_in_open = np.maximum.accumulate(d_back > 0.55, axis=1)
-            ok &= ~(out_in_open & (d_back < 0.5)).any(axis=1)
+            narrow_again = out_in_open & (d_back < 0.5)
+            if p.spot_passage_only and narrow_again.any():  # ... a passage: obstacles close on both sides
+                pts = back.reshape(-1, 2)
+                lat = PASSAGE_PROBE_M * right
+                both = (self._distance_at(pts + lat) < PASSAGE_WALL_M) & (self._distance_at(pts - lat) < PASSAGE_WALL_M)
+                narrow_again &= both.reshape(d_back.shape)
+            ok &= ~narrow_again.any(axis=1)
             spots[sign] = arr[ok]
         return spots[sign]
 

@@ -129,6 +129,11 @@ DIFFUSION_SPEED_CAP = 1.0
 # taking it at once (agents.door_turns.DoorParams.no_room_waits). An option, off; crowd_log.md, "Door turns for the
 # physics bodies".
 DOOR_NO_ROOM_WAITS = False
+# Door turns for AMP pedestrians: whether the way back to a waiting spot is refused only where it runs into a passage
+# (agents.door_turns.DoorParams.spot_passage_only), not beside one piece of furniture: without it the home's kitchen
+# door has no waiting spot on its living-room side (the dining table beside the way). An option, off; crowd_log.md,
+# "A kitchen door with no waiting spot".
+DOOR_SPOT_PASSAGE_ONLY = False
 # How long a door turn's grant lasts for AMP pedestrians without its holder getting through (s;
 # agents.door_turns.DoorParams.grant_max_s, 10 s for every crowd). The holder then asks again, last in the queue.
 # 4 s was tried (crowd_log.md, "Where the doorway's time goes"): on the Intel device the doorway was level with either
