@@ -281,6 +281,23 @@ def test_waiting_spots_stay_on_the_door_side_and_off_narrow_corridors():
     assert dt.granted[0] == door  # asking from the corridor side: granted at once
 
 
+@pytest.mark.parametrize("passage_only", [False, True])
+def test_a_table_beside_the_way_back_leaves_the_waiting_spots_only_with_spot_passage_only(passage_only):
+    """DoorParams.spot_passage_only: the home's kitchen door (x = 8, y 2.5-3.4) seen from the living room has the
+    dining table 0.4 m beside the way back to its spots; by default that refuses every spot (people from there take
+    the door at once), with the option they wait beside it. The corridor side of the living-room door, a way back
+    that runs into the bedroom's door across the corridor, has no spot either way."""
+    grid = OccupancyGrid.from_scene(get_scene("home"))
+    dt = DoorTurns(1, grid.distance_at, DoorParams(spot_passage_only=passage_only))
+    kitchen, sign = dt.door_id(np.array([8.05, 2.95]), np.array([1.0, 0.0]))  # from the living room, eastward
+    assert dt.can_queue(kitchen, sign) == passage_only
+    if passage_only:
+        spots = dt.spots(kitchen, sign)
+        assert (spots[:, 0] < 8.0).all() and (grid.distance_at(spots) >= dt.params.spot_clearance).all()
+    living, sign = dt.door_id(np.array([3.45, 6.0]), np.array([0.0, -1.0]))
+    assert not dt.can_queue(living, sign) and dt.can_queue(living, -sign)
+
+
 def test_door_turns_default_on_for_amp_pedestrians_only():
     assert NavConfig().door_turns is False
     assert NavConfig(human_model="amp").door_turns is True  # the default since 2026-12-06
@@ -338,6 +355,12 @@ def test_amp_pedestrians_door_params_follow_the_constant(monkeypatch):
     env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp", crowd_model="sfm", time_limit=5.0)
     env.reset(seed=0)
     assert env.door_turns.params.no_room_waits and env.door_turns.params.grant_max_s == 6.0
+    assert not env.door_turns.params.spot_passage_only
+    env.close()
+    monkeypatch.setattr(amp_humans, "DOOR_SPOT_PASSAGE_ONLY", True)
+    env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp", crowd_model="sfm", time_limit=5.0)
+    env.reset(seed=0)
+    assert env.door_turns.params.spot_passage_only
     env.close()
     kin = NavEnv(scene="doorway", n_robots=0, n_humans=2, crowd_model="sfm", human_door_turns=True)
     kin.reset(seed=0)
