@@ -83,6 +83,10 @@ class DoorParams:
             where one piece of furniture stands beside the way (False: any point under 0.5 m from an obstacle after
             the way got out in the open refuses the spot; the home's kitchen door then has no waiting spot on its
             living-room side, beside the dining table, and people from there always take it at once).
+        passed_lateral: a person counts as through a door (``passed`` beyond its centre) only while it is within this
+            distance of the door's axis line (m; None: anywhere beside the door, the default). Without it, a person
+            pushed a metre aside, to where the door's far side lies along the axis, is taken as through a door it has
+            not crossed: it stops asking for that door and holds the next one on its route instead.
     """
 
     approach: float = 2.5
@@ -98,6 +102,7 @@ class DoorParams:
     spot_clearance: float = 0.35
     no_room_waits: bool = False
     spot_passage_only: bool = False
+    passed_lateral: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("approach", "wait", "passed", "throat", "platoon_s", "grant_max_s", "grant_stall_gain", "merge",
@@ -108,6 +113,9 @@ class DoorParams:
         v = self.grant_stall_s
         if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
             raise ValueError(f"DoorParams.grant_stall_s must be None (off) or a finite number > 0, got {v!r}")
+        v = self.passed_lateral
+        if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ValueError(f"DoorParams.passed_lateral must be None (off) or a finite number > 0, got {v!r}")
         if not (isinstance(self.side_step, (int, float)) and math.isfinite(self.side_step) and self.side_step >= 0):
             raise ValueError(f"DoorParams.side_step must be a finite number >= 0, got {self.side_step!r}")
         if self.wait >= self.approach:
@@ -251,12 +259,15 @@ class DoorTurns:
         """Advance every route past the doors already crossed; (next door or -1, sign of its crossing)."""
         cur = np.full(self.n, -1)
         sign = np.zeros(self.n, dtype=int)
+        lateral = self.params.passed_lateral
         for j in range(self.n):
             route = self.routes[j]
             while self.k[j] < len(route):
                 d, g = route[self.k[j]]
-                along = float((pos[j] - self.centres[d]) @ self.axes[d]) * g
-                if along > self.params.passed:  # through: next door
+                rel = pos[j] - self.centres[d]
+                along = float(rel @ self.axes[d]) * g
+                beside = lateral is not None and abs(float(rel[0] * self.axes[d][1] - rel[1] * self.axes[d][0])) > lateral
+                if along > self.params.passed and not beside:  # through: next door
                     if self.granted[j] == d:
                         self._release(np.array([j]))
                     self.k[j] += 1

@@ -134,6 +134,11 @@ DOOR_NO_ROOM_WAITS = False
 # door has no waiting spot on its living-room side (the dining table beside the way). An option, off; crowd_log.md,
 # "A kitchen door with no waiting spot".
 DOOR_SPOT_PASSAGE_ONLY = False
+# Door turns for AMP pedestrians: a person counts as through a door only within this distance of the door's axis line
+# (m; agents.door_turns.DoorParams.passed_lateral; 0 = anywhere beside it). Without it a person pushed aside to where
+# the door's far side lies along the axis drops the door it has not crossed. An option, off; crowd_log.md, "Through a
+# door without crossing it".
+DOOR_PASSED_LATERAL = 0.0
 # How long a door turn's grant lasts for AMP pedestrians without its holder getting through (s;
 # agents.door_turns.DoorParams.grant_max_s, 10 s for every crowd). The holder then asks again, last in the queue.
 # 4 s was tried (crowd_log.md, "Where the doorway's time goes"): on the Intel device the doorway was level with either

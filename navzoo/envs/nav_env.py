@@ -396,6 +396,7 @@ class NavEnv(ParallelEnv):
         stall_s = amp_humans.DIFFUSION_DOOR_GRANT_STALL_S if cfg.crowd_model == "diffusion" else amp_humans.DOOR_GRANT_STALL_S
         door_params = DoorParams(no_room_waits=bool(amp_humans.DOOR_NO_ROOM_WAITS),
                                  spot_passage_only=bool(amp_humans.DOOR_SPOT_PASSAGE_ONLY),
+                                 passed_lateral=float(amp_humans.DOOR_PASSED_LATERAL) or None,
                                  grant_max_s=float(amp_humans.DOOR_GRANT_MAX_S),
                                  grant_stall_s=float(stall_s) or None) if cfg.human_model == "amp" else None
         self.door_turns = DoorTurns(H, self.grid.distance_at, door_params) if cfg.door_turns and rp is None else None

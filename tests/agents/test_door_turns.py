@@ -117,9 +117,29 @@ def test_rollout_positions_wait_at_a_door_held_against_them():
     assert not np.allclose(near[1], pref[1])
 
 
+@pytest.mark.parametrize("lateral", [None, 1.0])
+def test_one_pushed_aside_beyond_the_door_is_through_only_without_passed_lateral(lateral):
+    dt = _turns(2, passed_lateral=lateral)
+    dt.set_route(0, [(CENTRE, AXIS)])
+    dt.set_route(1, [(CENTRE, -AXIS)])
+    # person 0 (eastward) stands 0.8 m beyond the door's line but 1.5 m to its side, still west of the wall's door
+    pos = np.array([[0.8, 1.5], [2.0, 0.0]])
+    dt.update(0.0, pos)
+    if lateral is None:
+        assert dt.k[0] == 1 and dt._cur[0] == -1  # taken as through, it drops the door it never crossed
+    else:
+        assert dt.k[0] == 0 and dt._cur[0] == 0 and dt.granted[0] == 0  # it still asks for the door
+    # through the door's throat it is through either way
+    pos[0] = [0.7, 0.2]
+    dt.update(0.5, pos)
+    assert dt.k[0] == 1 and dt.granted[0] == -1
+
+
 def test_params_are_checked():
     with pytest.raises(ValueError, match="approach"):
         DoorParams(approach=-1.0)
+    with pytest.raises(ValueError, match="passed_lateral"):
+        DoorParams(passed_lateral=0.0)
     with pytest.raises(ValueError, match="wait"):
         DoorParams(wait=3.0, approach=2.5)
     with pytest.raises(ValueError, match="human_door_turns"):
@@ -360,7 +380,12 @@ def test_amp_pedestrians_door_params_follow_the_constant(monkeypatch):
     monkeypatch.setattr(amp_humans, "DOOR_SPOT_PASSAGE_ONLY", True)
     env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp", crowd_model="sfm", time_limit=5.0)
     env.reset(seed=0)
-    assert env.door_turns.params.spot_passage_only
+    assert env.door_turns.params.spot_passage_only and env.door_turns.params.passed_lateral is None
+    env.close()
+    monkeypatch.setattr(amp_humans, "DOOR_PASSED_LATERAL", 1.0)
+    env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp", crowd_model="sfm", time_limit=5.0)
+    env.reset(seed=0)
+    assert env.door_turns.params.passed_lateral == 1.0
     env.close()
     kin = NavEnv(scene="doorway", n_robots=0, n_humans=2, crowd_model="sfm", human_door_turns=True)
     kin.reset(seed=0)
