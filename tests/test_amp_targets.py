@@ -31,6 +31,39 @@ def test_lookahead_is_bounded_and_stops_at_the_goal():
     assert advance_waypoint(PATH, 7, np.array([4.5, 0.0]), tol=0.6, lookahead=4) == 9  # last index
 
 
+def test_in_sight_keeps_the_last_waypoint_the_body_sees():
+    # within reach of waypoints 3, 4 and 5, but only waypoints up to x = 1.5 (index 3) are in sight
+    pos = np.array([2.0, 0.3])
+    assert advance_waypoint(PATH, 2, pos, tol=0.6, lookahead=WAYPOINT_LOOKAHEAD) == 6
+    seen = []
+
+    def sight(p, w):
+        seen.append(float(w[0]))
+        return bool(w[0] <= 1.5)
+
+    assert advance_waypoint(PATH, 2, pos, tol=0.6, lookahead=WAYPOINT_LOOKAHEAD, in_sight=sight) == 3
+    assert seen == [3.0, 2.5, 2.0, 1.5]  # asked from the farthest back
+    # it never goes back behind the waypoint it had, even one out of sight
+    assert advance_waypoint(PATH, 2, pos, tol=0.6, lookahead=WAYPOINT_LOOKAHEAD, in_sight=lambda p, w: False) == 2
+    # no move, no question
+    assert advance_waypoint(PATH, 2, np.array([-3.0, 0.0]), tol=0.6, lookahead=4, in_sight=lambda p, w: 1 / 0) == 2
+
+
+def test_waypoint_sight_follows_the_constant_and_sees_through_the_door_only(monkeypatch):
+    from navzoo.envs import amp_humans
+    from navzoo.envs.nav_env import NavEnv
+
+    env = NavEnv(scene="doorway", n_robots=0, n_humans=1, human_model="amp", crowd_model="sfm", time_limit=5.0)
+    env.reset(seed=0)
+    assert env.waypoint_sight(0) is None  # off by default
+    monkeypatch.setattr(amp_humans, "WAYPOINT_ADVANCE_IN_SIGHT", True)
+    sight = env.waypoint_sight(0)
+    assert sight(np.array([7.2, 4.0]), np.array([9.0, 4.0]))  # straight through the 1.0 m door
+    assert not sight(np.array([7.2, 5.5]), np.array([9.0, 5.5]))  # through the wall beside it
+    assert sight(np.array([7.85, 5.0]), np.array([7.0, 5.0]))  # from inside the inflated wall: its nearest free point
+    env.close()
+
+
 def _door(gap: float = 0.9, thickness: float = 0.12) -> np.ndarray:
     """A wall along y = 0 from x = -3 to 3 with a door of ``gap`` centred on x = 0, as closed outlines."""
     segs = []

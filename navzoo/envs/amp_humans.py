@@ -221,6 +221,13 @@ WAYPOINT_LOOKAHEAD = 4
 # diffusion targets, with a few more falls: within what the seeds scatter. Held out, with the defaults of
 # 2026-12-06 (device, seeds 0-7, docs/crowd_log.md "Skipping passed waypoints, held out"): level as well.
 SKIP_PASSED_WAYPOINTS = False
+# A body that comes within the tolerance of a waypoint in a door while still before the jamb (0.6 m reach, at an
+# angle) moves on to the waypoint beyond the door, hidden from it behind the wall: its targets then pull it along the
+# wall into the jamb (home trace, crowd_log.md "Waypoints beyond a door moved on to out of sight"). With
+# WAYPOINT_ADVANCE_IN_SIGHT, physics pedestrians move on only to a waypoint they can see (a line of sight on the
+# planning grid from the nearest free point, advance_waypoint's ``in_sight``); otherwise they keep the last one in
+# sight, the one in the door. An option, off.
+WAYPOINT_ADVANCE_IN_SIGHT = False
 # How the social-force rollouts keep PLAN_MARGIN between people. False: on the radius, which also makes the
 # social repulsion exp(2 x 0.1 / 0.3) = 1.95 times stronger at every distance; in the lobby (15 people,
 # 60 s) the targets then move at 0.59 m/s where the kinematic social-force crowd walks at 0.87
@@ -526,12 +533,24 @@ def passed(path: np.ndarray, k: int, pos: np.ndarray) -> bool:
 
 
 def advance_waypoint(path: np.ndarray, k: int, pos: np.ndarray, tol: float, lookahead: int = 0,
-                     visible: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> int:
+                     visible: Callable[[np.ndarray, np.ndarray], bool] | None = None,
+                     in_sight: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> int:
     """Index of the waypoint to head for next: past the farthest of ``path[k .. k + lookahead]``
     within ``tol`` of ``pos``, then past every following one within ``tol`` (``lookahead=0``: the
     strict order of kinematic pedestrians). With ``visible`` (and ``lookahead > 0``), also past every
     waypoint that ``pos`` has :func:`passed` while ``visible(pos, next waypoint)`` holds (a line of sight
-    on the planning grid). Never beyond the path's last point."""
+    on the planning grid). With ``in_sight``, the index moves on only as far as the last waypoint for which
+    ``in_sight(pos, waypoint)`` holds (it never goes back below ``k``). Never beyond the path's last point."""
+    k0 = k
+    k = _advance_waypoint(path, k, pos, tol, lookahead, visible)
+    if in_sight is not None:
+        while k > k0 and not in_sight(pos, path[k]):
+            k -= 1
+    return k
+
+
+def _advance_waypoint(path: np.ndarray, k: int, pos: np.ndarray, tol: float, lookahead: int,
+                      visible: Callable[[np.ndarray, np.ndarray], bool] | None) -> int:
     last = len(path) - 1
     if lookahead > 0 and k < last:
         end = min(last, k + lookahead)
@@ -705,6 +724,7 @@ class AmpHumans:
             wall_stall = StallSwitch(self.n)
         wall_rad = env.radius[h] + self.wall_margin
         visible = [env.waypoint_visibility(i) for i in h]
+        in_sight = [env.waypoint_sight(i) for i in h]
         vmax = np.full(self.n, env.config.human_max_speed)
         if TARGET_SPEED_CAP > 0.0 and env.diffusion is None:
             vmax = np.where(v_pref > 0.0, np.minimum(vmax, v_pref * TARGET_SPEED_CAP), vmax)
@@ -745,7 +765,8 @@ class AmpHumans:
                                     1.0, warp)
         def toward_waypoints(who, pos):  # people `who` head for their next A* waypoint at their preferred speed
             for j in who:  # advance along the A* path, as the env does for physics pedestrians
-                wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD, visible[j])
+                wp_index[j] = advance_waypoint(paths[j], int(wp_index[j]), pos[j], tol, WAYPOINT_LOOKAHEAD, visible[j],
+                                               in_sight[j])
             wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in who])
             return preferred_velocity(pos[who], wp, goal[who], v_pref[who])
 

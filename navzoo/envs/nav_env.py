@@ -908,7 +908,8 @@ class NavEnv(ParallelEnv):
             amp = self.amp is not None and i >= self.n_robots
             self.wp_index[i] = advance_waypoint(self.paths[i], int(self.wp_index[i]), self.pos[i], tol,
                                                 WAYPOINT_LOOKAHEAD if amp else 0,
-                                                self.waypoint_visibility(i) if amp else None)
+                                                self.waypoint_visibility(i) if amp else None,
+                                                self.waypoint_sight(i) if amp else None)
 
     def waypoint_visibility(self, i: int):
         """Line-of-sight test ``(a, b) -> bool`` on agent ``i``'s bare planning grid (pedestrians: around
@@ -918,6 +919,20 @@ class NavEnv(ParallelEnv):
             return None
         planner = self._planner_for(i)(float(self.radius[i]))
         return planner.line_of_sight
+
+    def waypoint_sight(self, i: int):
+        """Line-of-sight test ``(pos, waypoint) -> bool`` from the nearest free point of agent ``i``'s planning
+        grid (a position off it, or with no free point near, sees everything), with which physics pedestrians
+        move on only to waypoints in sight (``amp_humans.WAYPOINT_ADVANCE_IN_SIGHT``); None when that is off."""
+        if not amp_humans.WAYPOINT_ADVANCE_IN_SIGHT:
+            return None
+        planner = self._planner_for(i)(float(self.radius[i]))
+
+        def sight(pos: np.ndarray, waypoint: np.ndarray) -> bool:
+            start = planner._snap(np.asarray(pos, dtype=np.float64))
+            return True if start is None else planner.line_of_sight(start[0], waypoint)
+
+        return sight
 
     def _human_progress(self) -> np.ndarray:
         """(H,) each pedestrian's speed toward the next waypoint of its path, as a share of its preferred
