@@ -136,8 +136,8 @@ DOOR_NO_ROOM_WAITS = False
 DOOR_SPOT_PASSAGE_ONLY = False
 # Door turns for AMP pedestrians: a person counts as through a door only within this distance of the door's axis line
 # (m; agents.door_turns.DoorParams.passed_lateral; 0 = anywhere beside it). Without it a person pushed aside to where
-# the door's far side lies along the axis drops the door it has not crossed. An option, off; crowd_log.md, "Through a
-# door without crossing it".
+# the door's far side lies along the axis drops the door it has not crossed. An option, off (behind in the home's three
+# runs where it acts, the doorway unchanged); crowd_log.md, "Through a door without crossing it".
 DOOR_PASSED_LATERAL = 0.0
 # How long a door turn's grant lasts for AMP pedestrians without its holder getting through (s;
 # agents.door_turns.DoorParams.grant_max_s, 10 s for every crowd). The holder then asks again, last in the queue.
@@ -223,7 +223,8 @@ WAYPOINT_LOOKAHEAD = 4
 SKIP_PASSED_WAYPOINTS = False
 # A body that comes within the tolerance of a waypoint in a door while still before the jamb (0.6 m reach, at an
 # angle) moves on to the waypoint beyond the door, hidden from it behind the wall: its targets then pull it along the
-# wall into the jamb (home trace, crowd_log.md "Waypoints beyond a door moved on to out of sight"). With
+# wall into the jamb (home trace; crowd_log.md "Through a door without crossing it; waypoints beyond a door moved on
+# to out of sight": level on successes in the doorway and the home, fewer agent contacts). With
 # WAYPOINT_ADVANCE_IN_SIGHT, physics pedestrians move on only to a waypoint they can see (a line of sight on the
 # planning grid from the nearest free point, advance_waypoint's ``in_sight``); otherwise they keep the last one in
 # sight, the one in the door. An option, off.
