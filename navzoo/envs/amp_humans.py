@@ -224,7 +224,7 @@ SKIP_PASSED_WAYPOINTS = False
 # A body that comes within the tolerance of a waypoint in a door while still before the jamb (0.6 m reach, at an
 # angle) moves on to the waypoint beyond the door, hidden from it behind the wall: its targets then pull it along the
 # wall into the jamb (home trace; crowd_log.md "Through a door without crossing it; waypoints beyond a door moved on
-# to out of sight": level on successes in the doorway and the home, fewer agent contacts). With
+# to out of sight": level in the doorway and the home with fewer agent contacts, the lobby behind on every seed). With
 # WAYPOINT_ADVANCE_IN_SIGHT, physics pedestrians move on only to a waypoint they can see (a line of sight on the
 # planning grid from the nearest free point, advance_waypoint's ``in_sight``); otherwise they keep the last one in
 # sight, the one in the door. An option, off.
