@@ -144,8 +144,8 @@ def waypoint_hidden(scene: str, samples: list[dict], human_radius: float = 0.3) 
     planner = env._planner(float(human_radius))
     out: list[bool | None] = []
     for x in samples:
-        start = planner._snap(np.array([x["x"], x["y"]])) if "waypoint" in x else None
-        out.append(None if start is None else not planner.line_of_sight(start[0], np.asarray(x["waypoint"])))
+        sees = planner.sight_from((x["x"], x["y"]), np.asarray(x["waypoint"])) if "waypoint" in x else None
+        out.append(None if sees is None else not sees)
     env.close()
     return out
 

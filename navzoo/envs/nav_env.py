@@ -929,8 +929,7 @@ class NavEnv(ParallelEnv):
         planner = self._planner_for(i)(float(self.radius[i]))
 
         def sight(pos: np.ndarray, waypoint: np.ndarray) -> bool:
-            start = planner._snap(np.asarray(pos, dtype=np.float64))
-            return True if start is None else planner.line_of_sight(start[0], waypoint)
+            return planner.sight_from(pos, waypoint) is not False
 
         return sight
 
@@ -1063,8 +1062,7 @@ class NavEnv(ParallelEnv):
             path = self.paths[i]
             k = min(int(self.wp_index[i]), len(path) - 1)
             planner = self._planner_for(i)(float(self.radius[i]))
-            start = planner._snap(self.pos[i])
-            if start is not None and planner.line_of_sight(start[0], path[k]):
+            if planner.sight_from(self.pos[i], path[k]):
                 self._wp_hidden[i] = 0.0
                 continue
             self._wp_hidden[i] += dt

@@ -116,6 +116,12 @@ class AStarPlanner:
             return None
         return centres[i], (int(rr[free][i]), int(cc[free][i]))
 
+    def sight_from(self, pos: ArrayLike, p1: ArrayLike) -> bool | None:
+        """:meth:`line_of_sight` to ``p1`` from the nearest free point to ``pos`` (``pos`` itself when free; a body
+        pressed against a wall stands in the inflated obstacle); None when no free point lies within ``snap_radius``."""
+        start = self._snap(np.asarray(pos, dtype=np.float64).reshape(2))
+        return None if start is None else self.line_of_sight(start[0], p1)
+
     def line_of_sight(self, p0: ArrayLike, p1: ArrayLike) -> bool:
         """True if every cell touched by the segment p0-p1 is free in the inflated grid.
 
