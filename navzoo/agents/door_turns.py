@@ -32,7 +32,10 @@ turn-taking does:
   where a waiting person would block the corridor): the other side waits for it. With
   ``DoorParams.no_room_waits`` the latter takes the door only while nobody holds it the other way, and else
   stops ``wait`` short of it, in the corridor (off by default; ``amp_humans.DOOR_NO_ROOM_WAITS`` for AMP
-  pedestrians).
+  pedestrians);
+* with ``DoorParams.line_up``, a holder still before its door and too far to the side of the door's axis for a
+  straight way into it (outside a cone round the axis) heads first for a point on the axis before the door (off by
+  default; ``amp_humans.DOOR_LINE_UP`` for AMP pedestrians).
 
 Everything is deterministic and vectorised over people where it matters. Kinematic pedestrians get
 the edited preferred velocity at every step; the target rollouts of AMP pedestrians apply it at the
@@ -87,6 +90,13 @@ class DoorParams:
             distance of the door's axis line (m; None: anywhere beside the door, the default). Without it, a person
             pushed a metre aside, to where the door's far side lies along the axis, is taken as through a door it has
             not crossed: it stops asking for that door and holds the next one on its route instead.
+        line_up: a person who holds its next door and is still before it heads first for the door's axis when it
+            lies more than this times its distance before the door's centre to either side of the axis (a slope; None:
+            off, the default). It then walks toward the point ``line_up_back`` before the centre on the axis until it
+            is inside that cone, and from there as its own velocity says. Without it a holder that comes off its
+            waiting spot (``wait`` back, ``side_step`` aside: a slope of about 0.7) heads for the door's middle on a
+            line that meets the wall beside the opening, and a physics body stands pressed against that wall.
+        line_up_back: how far before the door's centre, on its axis, the line-up point lies (m).
     """
 
     approach: float = 2.5
@@ -103,10 +113,12 @@ class DoorParams:
     no_room_waits: bool = False
     spot_passage_only: bool = False
     passed_lateral: float | None = None
+    line_up: float | None = None
+    line_up_back: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("approach", "wait", "passed", "throat", "platoon_s", "grant_max_s", "grant_stall_gain", "merge",
-                     "spot_clearance"):
+                     "spot_clearance", "line_up_back"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"DoorParams.{name} must be a finite number > 0, got {v!r}")
@@ -116,6 +128,9 @@ class DoorParams:
         v = self.passed_lateral
         if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
             raise ValueError(f"DoorParams.passed_lateral must be None (off) or a finite number > 0, got {v!r}")
+        v = self.line_up
+        if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ValueError(f"DoorParams.line_up must be None (off) or a finite slope > 0, got {v!r}")
         if not (isinstance(self.side_step, (int, float)) and math.isfinite(self.side_step) and self.side_step >= 0):
             raise ValueError(f"DoorParams.side_step must be a finite number >= 0, got {self.side_step!r}")
         if self.wait >= self.approach:
@@ -330,6 +345,17 @@ class DoorTurns:
         self.close_d[new], self.close_t[new] = dist[new], t
         return new
 
+    def _lining_up(self, pos: np.ndarray, has: np.ndarray, c: np.ndarray, along: np.ndarray,
+                   sign: np.ndarray) -> np.ndarray:
+        """(n,) whether each person holds its next door, is still before it (not in its throat) and lies outside
+        the cone ``|across| <= line_up x (distance before the centre)`` round the door's axis (``DoorParams.line_up``)."""
+        p = self.params
+        holds = has & (self.granted == self._cur)
+        ax = self.axes[np.maximum(self._cur, 0)]
+        across = np.abs(ax[:, 0] * (pos[:, 1] - c[:, 1]) - ax[:, 1] * (pos[:, 0] - c[:, 0]))
+        before = -along
+        return holds & (before > 0.0) & (np.linalg.norm(pos - c, axis=1) >= p.throat) & (across > p.line_up * before)
+
     def waiting(self) -> np.ndarray:
         """(n,) bool: who asked for a door at the last update and was not granted it."""
         return np.isfinite(self.request_t) & (self.granted < 0)
@@ -360,10 +386,16 @@ class DoorTurns:
         # no_room_waits: one with nowhere to queue stops short of a door held against it, in the passage
         stop = wait & ~room & (dist <= p.wait) if p.no_room_waits else np.zeros(self.n, dtype=bool)
         wait &= room
-        if not (wait.any() or stop.any()):
+        line = self._lining_up(pos, has, c, along, sign) if p.line_up is not None else np.zeros(self.n, dtype=bool)
+        if not (wait.any() or stop.any() or line.any()):
             return pref
         out = np.array(pref, dtype=np.float64, copy=True)
         out[stop] = 0.0
+        for j in np.flatnonzero(line):  # holders off the door's axis: to the line-up point first
+            ax = self.axes[int(cur[j])] * sign[j]
+            to = c[j] - ax * p.line_up_back - pos[j]
+            d = float(np.linalg.norm(to))
+            out[j] = to / max(d, 1e-9) * float(v_pref[j]) * min(1.0, d / 0.6)
         for j in np.flatnonzero(wait):
             d_j, s_j = int(cur[j]), int(sign[j])
             line = queued & (cur == d_j) & (sign == s_j)

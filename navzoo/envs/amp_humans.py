@@ -139,6 +139,12 @@ DOOR_SPOT_PASSAGE_ONLY = False
 # the door's far side lies along the axis drops the door it has not crossed. An option, off (behind in the home's three
 # runs where it acts, the doorway unchanged); crowd_log.md, "Through a door without crossing it".
 DOOR_PASSED_LATERAL = 0.0
+# Door turns for AMP pedestrians: a holder of a door still before it and further to the side of the door's axis than
+# this times its distance before the door's centre (a slope) heads for the point 1 m before the centre on the axis first
+# (agents.door_turns.DoorParams.line_up; 0 = off). Traced in the doorway (crowd_log.md, "Holders pressed against the
+# wall beside the door"): holders that leave their waiting spot aim at the door's middle on a line that meets the wall
+# beside the opening, and stand there, pressed against it. An option, off.
+DOOR_LINE_UP = 0.0
 # How long a door turn's grant lasts for AMP pedestrians without its holder getting through (s;
 # agents.door_turns.DoorParams.grant_max_s, 10 s for every crowd). The holder then asks again, last in the queue.
 # 4 s was tried (crowd_log.md, "Where the doorway's time goes"): on the Intel device the doorway was level with either

@@ -397,6 +397,7 @@ class NavEnv(ParallelEnv):
         door_params = DoorParams(no_room_waits=bool(amp_humans.DOOR_NO_ROOM_WAITS),
                                  spot_passage_only=bool(amp_humans.DOOR_SPOT_PASSAGE_ONLY),
                                  passed_lateral=float(amp_humans.DOOR_PASSED_LATERAL) or None,
+                                 line_up=float(amp_humans.DOOR_LINE_UP) or None,
                                  grant_max_s=float(amp_humans.DOOR_GRANT_MAX_S),
                                  grant_stall_s=float(stall_s) or None) if cfg.human_model == "amp" else None
         self.door_turns = DoorTurns(H, self.grid.distance_at, door_params) if cfg.door_turns and rp is None else None

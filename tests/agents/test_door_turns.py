@@ -135,11 +135,47 @@ def test_one_pushed_aside_beyond_the_door_is_through_only_without_passed_lateral
     assert dt.k[0] == 1 and dt.granted[0] == -1
 
 
+@pytest.mark.parametrize("slope", [None, 0.35])
+def test_a_holder_beside_the_door_heads_for_its_axis_first_only_with_line_up(slope):
+    dt = _turns(2, line_up=slope)
+    dt.set_route(0, [(CENTRE, AXIS)])
+    dt.set_route(1, [(CENTRE, AXIS)])
+    # both hold the door (the same way); person 0 stands 0.5 m before it and 1.0 m to its side (off its waiting
+    # spot, aiming at the door's middle), person 1 comes along the axis
+    pos = np.array([[-0.5, -1.0], [-1.5, 0.1]])
+    dt.update(0.0, pos)
+    assert dt.granted[0] == 0 and dt.granted[1] == 0
+    pref = (CENTRE - pos) / np.linalg.norm(CENTRE - pos, axis=1, keepdims=True)  # straight at the door's middle
+    out = dt.apply(pos, pref, np.ones(2))
+    np.testing.assert_allclose(out[1], pref[1])  # inside the cone: its own way
+    if slope is None:
+        np.testing.assert_allclose(out[0], pref[0])
+    else:  # toward the line-up point 1 m before the centre on the axis, at its preferred speed
+        to = np.array([-1.0, 0.0]) - pos[0]
+        np.testing.assert_allclose(out[0], to / np.linalg.norm(to))
+        # once inside the cone it goes its own way again; so does one who does not hold the door
+        inside = np.array([[-0.9, -0.25], [-1.5, 0.1]])
+        np.testing.assert_allclose(dt.apply(inside, pref, np.ones(2)), pref)
+    dt2 = _turns(2, line_up=slope)
+    dt2.set_route(0, [(CENTRE, AXIS)])
+    dt2.set_route(1, [(CENTRE, -AXIS)])
+    dt2.update(0.0, np.array([[-3.0, 0.0], [2.0, 0.0]]))  # person 1 holds the door westward, person 0 still far
+    dt2.update(0.1, np.array([[-0.5, -1.0], [0.3, 0.0]]))  # person 0 asks, the door is held against it
+    assert dt2.granted[0] == -1
+    away = dt2.apply(np.array([[-0.5, -1.0], [0.3, 0.0]]), np.array([[1.0, 0.0], [-1.0, 0.0]]), np.ones(2))
+    spot = dt2.spot(0, 1)
+    assert away[0] @ (spot - np.array([-0.5, -1.0])) > 0  # a waiter walks to its spot, not to the axis
+
+
 def test_params_are_checked():
     with pytest.raises(ValueError, match="approach"):
         DoorParams(approach=-1.0)
     with pytest.raises(ValueError, match="passed_lateral"):
         DoorParams(passed_lateral=0.0)
+    with pytest.raises(ValueError, match="line_up"):
+        DoorParams(line_up=float("nan"))
+    with pytest.raises(ValueError, match="line_up_back"):
+        DoorParams(line_up_back=0.0)
     with pytest.raises(ValueError, match="wait"):
         DoorParams(wait=3.0, approach=2.5)
     with pytest.raises(ValueError, match="human_door_turns"):
@@ -385,7 +421,12 @@ def test_amp_pedestrians_door_params_follow_the_constant(monkeypatch):
     monkeypatch.setattr(amp_humans, "DOOR_PASSED_LATERAL", 1.0)
     env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp", crowd_model="sfm", time_limit=5.0)
     env.reset(seed=0)
-    assert env.door_turns.params.passed_lateral == 1.0
+    assert env.door_turns.params.passed_lateral == 1.0 and env.door_turns.params.line_up is None
+    env.close()
+    monkeypatch.setattr(amp_humans, "DOOR_LINE_UP", 0.35)
+    env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp", crowd_model="sfm", time_limit=5.0)
+    env.reset(seed=0)
+    assert env.door_turns.params.line_up == 0.35
     env.close()
     kin = NavEnv(scene="doorway", n_robots=0, n_humans=2, crowd_model="sfm", human_door_turns=True)
     kin.reset(seed=0)
