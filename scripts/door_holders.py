@@ -2,7 +2,7 @@
 
     python scripts/door_holders.py --scene doorway --people 13 --seed 5 [--seconds 200] [--crowd diffusion]
         [--centre 8.0,4.0] [--const NAME=VALUE ...] --out F.json
-    python scripts/door_holders.py --summary F.json [F2.json ...]
+    python scripts/door_holders.py --summary F.json [F2.json.gz ...]
 
 Runs one scene of the following protocol as ``scripts/amp_stand_trace.py`` does (``navzoo.benchmark.pedestrians._make``:
 the shipped AMP policy, today's target settings, door turns on) and, every ``--every`` s, records each upright person
@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import gzip
 import json
 import sys
 import time
@@ -128,6 +129,14 @@ def summarize(runs: list[dict], cells: int = 10) -> dict:
     return out
 
 
+def load(path: str) -> dict:
+    """An ``--out`` file, gzipped (``.gz``) or not."""
+    if path.endswith(".gz"):
+        with gzip.open(path, "rt") as f:
+            return json.load(f)
+    return json.loads(Path(path).read_text())
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scene", default="doorway")
@@ -144,7 +153,7 @@ def main() -> None:
     ap.add_argument("--summary", nargs="+", default=None, metavar="F.json", help="print the summary of earlier --out files")
     args = ap.parse_args()
     if args.summary:
-        print(json.dumps(summarize([json.loads(Path(f).read_text()) for f in args.summary]), indent=1))
+        print(json.dumps(summarize([load(f) for f in args.summary]), indent=1))
         return
     if not args.out:
         ap.error("--out is required for a run")

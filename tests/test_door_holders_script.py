@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import gzip
+import json
 import sys
 
 import pytest
@@ -25,6 +27,17 @@ def test_summary_medians_by_zone_and_the_busiest_cells_of_the_door_frame():
     top = s["cells"][0]  # the three holders pressed against the wall beside the opening share a cell
     assert (top["along"], top["right"], top["samples"]) == (-0.5, 1.0, 3) and top["speed"] == pytest.approx(0.25)
     assert len(s["cells"]) == 2
+
+
+def test_summary_reads_gzipped_files(tmp_path, capsys, monkeypatch):
+    holders = load_script("door_holders")
+    f = tmp_path / "run.json.gz"
+    with gzip.open(f, "wt") as out:
+        json.dump({"goals": 4, "rows": [_row("door", 0.2, -0.5, 1.0)]}, out)
+    monkeypatch.setattr(sys, "argv", ["door_holders.py", "--summary", str(f)])
+    holders.main()
+    s = json.loads(capsys.readouterr().out)
+    assert s["goals"] == 4 and s["cells"][0]["samples"] == 1
 
 
 def test_bad_arguments_are_refused(capsys, monkeypatch):
