@@ -345,8 +345,7 @@ class DoorTurns:
         self.close_d[new], self.close_t[new] = dist[new], t
         return new
 
-    def _lining_up(self, pos: np.ndarray, has: np.ndarray, c: np.ndarray, along: np.ndarray,
-                   sign: np.ndarray) -> np.ndarray:
+    def _lining_up(self, pos: np.ndarray, has: np.ndarray, c: np.ndarray, along: np.ndarray) -> np.ndarray:
         """(n,) whether each person holds its next door, is still before it (not in its throat) and lies outside
         the cone ``|across| <= line_up x (distance before the centre)`` round the door's axis (``DoorParams.line_up``)."""
         p = self.params
@@ -386,12 +385,12 @@ class DoorTurns:
         # no_room_waits: one with nowhere to queue stops short of a door held against it, in the passage
         stop = wait & ~room & (dist <= p.wait) if p.no_room_waits else np.zeros(self.n, dtype=bool)
         wait &= room
-        line = self._lining_up(pos, has, c, along, sign) if p.line_up is not None else np.zeros(self.n, dtype=bool)
-        if not (wait.any() or stop.any() or line.any()):
+        lining = self._lining_up(pos, has, c, along) if p.line_up is not None else np.zeros(self.n, dtype=bool)
+        if not (wait.any() or stop.any() or lining.any()):
             return pref
         out = np.array(pref, dtype=np.float64, copy=True)
         out[stop] = 0.0
-        for j in np.flatnonzero(line):  # holders off the door's axis: to the line-up point first
+        for j in np.flatnonzero(lining):  # holders off the door's axis: to the line-up point first
             ax = self.axes[int(cur[j])] * sign[j]
             to = c[j] - ax * p.line_up_back - pos[j]
             d = float(np.linalg.norm(to))
