@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import gzip
 import json
 import sys
 import time
@@ -129,14 +128,6 @@ def summarize(runs: list[dict], cells: int = 10) -> dict:
     return out
 
 
-def load(path: str) -> dict:
-    """An ``--out`` file, gzipped (``.gz``) or not."""
-    if path.endswith(".gz"):
-        with gzip.open(path, "rt") as f:
-            return json.load(f)
-    return json.loads(Path(path).read_text())
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scene", default="doorway")
@@ -152,8 +143,11 @@ def main() -> None:
     ap.add_argument("--out", default=None, help="JSON result (rows and summary)")
     ap.add_argument("--summary", nargs="+", default=None, metavar="F.json", help="print the summary of earlier --out files")
     args = ap.parse_args()
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
     if args.summary:
-        print(json.dumps(summarize([load(f) for f in args.summary]), indent=1))
+        from amp_stand_trace import load_trace
+
+        print(json.dumps(summarize([load_trace(f) for f in args.summary]), indent=1))
         return
     if not args.out:
         ap.error("--out is required for a run")
@@ -162,7 +156,6 @@ def main() -> None:
         assert centre.shape == (2,) and np.isfinite(centre).all()
     except (ValueError, AssertionError):
         ap.error(f"--centre must be X,Y in metres, got {args.centre!r}")
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
     from amp_stand_trace import apply_const
 
     try:
