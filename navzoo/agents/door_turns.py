@@ -359,6 +359,13 @@ class DoorTurns:
         """(n,) bool: who asked for a door at the last update and was not granted it."""
         return np.isfinite(self.request_t) & (self.granted < 0)
 
+    def holder_waiter_pairs(self) -> np.ndarray:
+        """(n, n) bool, at the last update: True at (i, j) where i holds the door that j waits for (asked for it,
+        not granted). A waiting person stands aside on purpose, at a spot out of the door's lane; the AMP target
+        rollouts can let the holders pass such people without their repulsion (``amp_humans.DOOR_PASS_WAITERS``)."""
+        waits = self.waiting() & (self._cur >= 0)
+        return (self.granted[:, None] >= 0) & waits[None, :] & (self.granted[:, None] == self._cur[None, :])
+
     def apply(self, pos: np.ndarray, pref: np.ndarray, v_pref: np.ndarray) -> np.ndarray:
         """Preferred velocities (n, 2) with the door turns applied at positions ``pos`` (n, 2): a person
         who waits for its next door, or who is near a door held the other way and does not hold it,

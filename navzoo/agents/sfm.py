@@ -192,6 +192,16 @@ def _headings(pref_vel: np.ndarray, vel: np.ndarray) -> np.ndarray:
     return np.divide(heading, norm, out=np.zeros_like(heading), where=norm > _EPS)
 
 
+def _ignore(ignore: np.ndarray | None, n: int) -> np.ndarray | None:
+    """``ignore`` checked: None, or an (n, n) bool array."""
+    if ignore is None:
+        return None
+    arr = np.asarray(ignore)
+    if arr.shape != (n, n) or arr.dtype != bool:
+        raise ValueError(f"ignore must be a bool array of shape ({n}, {n}), got {arr.dtype} {arr.shape}")
+    return arr
+
+
 def _interaction(
     pos: np.ndarray,
     vel: np.ndarray,
@@ -202,8 +212,9 @@ def _interaction(
     radius_j: np.ndarray,
     params: SocialForceParams,
     exclude_diagonal: bool,
+    ignore: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Sum over j of the forces that the bodies j exert on the people i, (N, 2)."""
+    """Sum over j of the forces that the bodies j exert on the people i, (N, 2); none where ``ignore[i, j]``."""
     n, k = pos.shape[0], pos_j.shape[0]
     if n == 0 or k == 0:
         return np.zeros((n, 2))
@@ -260,6 +271,8 @@ def _interaction(
     mask = dist <= params.neighbor_dist
     if exclude_diagonal:
         mask &= ~np.eye(n, k, dtype=bool)
+    if ignore is not None:
+        mask &= ~ignore
     return np.einsum("nk,nkd->nd", mask.astype(float), force)
 
 
@@ -348,6 +361,7 @@ def social_forces(
     others_radius: np.ndarray | float | None = None,
     segment_groups: np.ndarray | None = None,
     wall_radius: np.ndarray | float | None = None,
+    ignore: np.ndarray | None = None,
 ) -> SocialForces:
     """Force components (accelerations) acting on N people.
 
@@ -367,6 +381,8 @@ def social_forces(
             wall; each wall then pushes once, from its nearest point. None: every segment is a wall.
         wall_radius: Radii (N,) or a scalar that walls see, when they differ from ``radius`` (a body
             kept farther from people than from walls); None means ``radius``.
+        ignore: (N, N) bool, True where person i feels no force from person j (its people term leaves j
+            out; j still feels i unless ``ignore[j, i]``); None: everyone feels everyone.
 
     Returns:
         The goal, people, robots and walls components, each (N, 2) m/s^2.
@@ -383,7 +399,8 @@ def social_forces(
 
     heading = _headings(pref_vel, vel)
     goal = (pref_vel - vel) / params.tau
-    people = _interaction(pos, vel, heading, radius, pos, vel, radius, params, True)
+    ignore = _ignore(ignore, n)
+    people = _interaction(pos, vel, heading, radius, pos, vel, radius, params, True, ignore)
 
     if others_pos is None or np.asarray(others_pos).size == 0:
         robots = np.zeros((n, 2))
@@ -435,6 +452,7 @@ def social_force_velocities(
     others_radius: np.ndarray | float | None = None,
     segment_groups: np.ndarray | None = None,
     wall_radius: np.ndarray | float | None = None,
+    ignore: np.ndarray | None = None,
 ) -> np.ndarray:
     """New velocities of N people after integrating the social force over one step.
 
@@ -459,6 +477,7 @@ def social_force_velocities(
         segment_groups: (M,) wall id of each segment (see :func:`social_forces`).
         wall_radius: Radii seen by the walls (their forces and the contact constraint), (N,) or a
             scalar; None means ``radius`` (see :func:`social_forces`).
+        ignore: (N, N) bool, the pairs (i, j) where i feels no force from j (see :func:`social_forces`).
 
     Returns:
         New velocities, (N, 2) m/s, with speed <= max_speed.
@@ -492,7 +511,7 @@ def social_force_velocities(
     for _ in range(n_sub):
         forces = social_forces(
             pos, vel, pref_vel, radius, params, segments, others_pos, others_vel, others_radius,
-            segment_groups, wall_radius_arr,
+            segment_groups, wall_radius_arr, ignore,
         )
         total = forces.total
         norm = np.linalg.norm(total, axis=1, keepdims=True)

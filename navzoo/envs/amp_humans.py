@@ -145,6 +145,12 @@ DOOR_PASSED_LATERAL = 0.0
 # wall beside the door"): holders that leave their waiting spot aim at the door's middle on a line that meets the wall
 # beside the opening, and stand there, pressed against it. An option, off.
 DOOR_LINE_UP = 0.0
+# With DOOR_PASS_WAITERS, the social-force target rollouts let a person who holds a door pass the people waiting for
+# that door without their repulsion (DoorTurns.holder_waiter_pairs, the grants and waits frozen at the plan's time, as
+# the door turns are in the rollouts). The waiting spots lie 1.0 m beside the door's lane on purpose, yet their people
+# push the holders' rollouts aside and slow them: in the doorway the holders' rollouts walked at 0.40-0.46 m/s while
+# their plans walked at 1.04-1.08 (crowd_log.md, "Holders pressed against the wall beside the door"). An option, off.
+DOOR_PASS_WAITERS = False
 # How long a door turn's grant lasts for AMP pedestrians without its holder getting through (s;
 # agents.door_turns.DoorParams.grant_max_s, 10 s for every crowd). The holder then asks again, last in the queue.
 # 4 s was tried (crowd_log.md, "Where the doorway's time goes"): on the Intel device the doorway was level with either
@@ -777,13 +783,18 @@ class AmpHumans:
             wp = np.stack([paths[j][min(wp_index[j], len(paths[j]) - 1)] for j in who])
             return preferred_velocity(pos[who], wp, goal[who], v_pref[who])
 
+        # DOOR_PASS_WAITERS: door holders feel no push from the people waiting for their door
+        ignore = env.door_turns.holder_waiter_pairs() if DOOR_PASS_WAITERS and env.door_turns is not None else None
+        if ignore is not None and not ignore.any():
+            ignore = None
+
         def social_force(pos, vel, pref, o_pos, wall_rad, softer=False):  # one social-force step of the rollout
             def step(params):
                 if softer:  # SFM_WALL_STALL's rows: the walls of the "near" strength
                     params = replace(params, A_wall=params.A_wall_near)
                 return social_force_velocities(pos, vel, pref, sf_rad, vmax, PLAN_DT, params, env.segments,
                                                others_pos=o_pos, others_vel=r_vel, others_radius=r_rad,
-                                               segment_groups=env.segment_groups, wall_radius=wall_rad)
+                                               segment_groups=env.segment_groups, wall_radius=wall_rad, ignore=ignore)
             v = step(sf_params)
             # each person's forces depend on its own gain only, and a step of PLAN_DT is one sub-step of the social force
             # (max_substep 0.1 s), so the rows of the step with the other gain are exact

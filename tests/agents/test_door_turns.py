@@ -167,6 +167,50 @@ def test_a_holder_beside_the_door_heads_for_its_axis_first_only_with_line_up(slo
     assert away[0] @ (spot - np.array([-0.5, -1.0])) > 0  # a waiter walks to its spot, not to the axis
 
 
+def test_holder_waiter_pairs_name_the_holder_of_the_door_each_waiter_waits_for():
+    dt = _turns(4)
+    other = (np.array([0.0, 6.0]), AXIS)  # a second door, far from the first
+    dt.set_route(0, [(CENTRE, AXIS)])
+    dt.set_route(1, [(CENTRE, -AXIS)])
+    dt.set_route(2, [other])
+    dt.set_route(3, [(other[0], -AXIS)])
+    pos = np.array([[-1.8, 0.0], [1.9, 0.0], [-1.8, 6.0], [1.9, 6.0]])
+    dt.update(0.0, pos)
+    assert list(dt.granted) == [0, -1, 1, -1] and list(dt.waiting()) == [False, True, False, True]
+    pairs = dt.holder_waiter_pairs()
+    expected = np.zeros((4, 4), dtype=bool)
+    expected[0, 1] = expected[2, 3] = True  # each holder with the one waiting for its own door, not the other's
+    np.testing.assert_array_equal(pairs, expected)
+    pos[0] = [0.8, 0.0]  # through: it holds nothing any more, and the waiter gets the door
+    dt.update(0.5, pos)
+    assert not dt.holder_waiter_pairs()[:2].any()
+
+
+def test_amp_holders_pass_the_people_waiting_for_their_door_only_with_the_option(monkeypatch):
+    """DOOR_PASS_WAITERS: the target rollout of a person who holds the doorway's door goes straight through and on,
+    where the repulsion of the person waiting 1 m beside its lane beyond the door pushes it aside and slows it."""
+    from navzoo.envs import amp_humans
+
+    assert amp_humans.DOOR_PASS_WAITERS is False  # off by default
+
+    def holder_path(on: bool) -> np.ndarray:
+        monkeypatch.setattr(amp_humans, "DOOR_PASS_WAITERS", on)
+        env = NavEnv(scene="doorway", n_robots=0, n_humans=2, human_model="amp", crowd_model="sfm", dt=1 / 30,
+                     time_limit=10.0)
+        try:
+            env.reset(seed=0, options={"human_starts": [[6.2, 4.0], [10.3, 4.0]],
+                                       "human_goals": [[12.0, 4.0], [4.0, 4.0]]})
+            assert list(env.door_turns.granted) == [0, -1] and env.door_turns.waiting()[1]
+            return env.amp.paths[0].copy()
+        finally:
+            env.close()
+
+    off, on = holder_path(False), holder_path(True)
+    k = 3 * 30  # 3 s into the plan
+    assert on[k, 0] > off[k, 0] + 0.1  # further along
+    assert np.abs(on[:, 1] - 4.0).max() < 0.05 < np.abs(off[:, 1] - 4.0).max()  # on the door's line, not pushed off
+
+
 def test_params_are_checked():
     with pytest.raises(ValueError, match="approach"):
         DoorParams(approach=-1.0)

@@ -280,3 +280,26 @@ def test_walls_near_another_person_can_phase_in() -> None:
     np.testing.assert_allclose(zero[3], 0.0)
     with pytest.raises(ValueError, match="wall_near_ramp"):
         SocialForceParams(wall_near_ramp=-1.0)
+
+
+def test_ignore_leaves_out_the_pairs_named_and_only_those() -> None:
+    pos = np.array([[0.0, 0.0], [0.8, 0.0], [0.0, 0.8]])
+    zeros = np.zeros((3, 2))
+    full = social_forces(pos, zeros, zeros, 0.3, PARAMS)
+    ignore = np.zeros((3, 3), dtype=bool)
+    ignore[0, 1] = True  # person 0 does not feel person 1; person 1 still feels person 0
+    part = social_forces(pos, zeros, zeros, 0.3, PARAMS, ignore=ignore)
+    only_2 = social_forces(pos[[0, 2]], zeros[:2], zeros[:2], 0.3, PARAMS)
+    np.testing.assert_allclose(part.people[0], only_2.people[0])
+    np.testing.assert_allclose(part.people[1:], full.people[1:])
+    assert np.linalg.norm(part.people[0] - full.people[0]) > 0.1
+    np.testing.assert_allclose(social_forces(pos, zeros, zeros, 0.3, PARAMS, ignore=np.ones((3, 3), bool)).people, 0.0)
+    # the velocities pass it on: person 0 walks on as if person 1 were not there
+    pref = np.array([[1.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
+    v = social_force_velocities(pos[:2], zeros[:2], pref[:2], 0.3, 2.0, 0.1, PARAMS, ignore=ignore[:2, :2])
+    alone = social_force_velocities(pos[:1], zeros[:1], pref[:1], 0.3, 2.0, 0.1, PARAMS)
+    np.testing.assert_allclose(v[0], alone[0])
+    with pytest.raises(ValueError, match="ignore"):
+        social_forces(pos, zeros, zeros, 0.3, PARAMS, ignore=np.zeros((2, 2), dtype=bool))
+    with pytest.raises(ValueError, match="ignore"):
+        social_forces(pos, zeros, zeros, 0.3, PARAMS, ignore=np.zeros((3, 3)))
