@@ -143,7 +143,9 @@ DOOR_PASSED_LATERAL = 0.0
 # this times its distance before the door's centre (a slope) heads for the point 1 m before the centre on the axis first
 # (agents.door_turns.DoorParams.line_up; 0 = off). Traced in the doorway (crowd_log.md, "Holders pressed against the
 # wall beside the door"): holders that leave their waiting spot aim at the door's middle on a line that meets the wall
-# beside the opening, and stand there, pressed against it. An option, off.
+# beside the opening, and stand there, pressed against it. An option, off: slope 0.35 is level on successes in the
+# doorway and the home with fewer map contacts, but behind held out (three door scenes, seeds 0-7, AMD VM: -3.3 +- 1.9
+# points per limit, the warehouse aisles 0.736 -> 0.684).
 DOOR_LINE_UP = 0.0
 # With DOOR_PASS_WAITERS, the social-force target rollouts let a person who holds a door pass the people waiting for
 # that door without their repulsion (DoorTurns.holder_waiter_pairs, the grants and waits frozen at the plan's time, as
