@@ -153,7 +153,8 @@ DOOR_LINE_UP = 0.0
 # push the holders' rollouts aside and slow them: in the doorway the holders' rollouts walked at 0.40-0.46 m/s while
 # their plans walked at 1.04-1.08 (crowd_log.md, "Holders pressed against the wall beside the door"). An option, off:
 # on the AMD VM (seeds 0-7) ahead in the doorway and the home by about one standard error with either target generator
-# (+3.5 +- 3.2 / +2.5 +- 2.3 points per limit), level held out, more agent contacts in the doorway; not yet run on the
+# (+3.5 +- 3.2 / +2.5 +- 2.3 points per limit), level held out with either (-0.1 +- 1.3 / -1.0 +- 1.0, seeds 0-7 /
+# 0-3), more agent contacts in the doorway; not yet run on the
 # Intel device that the bold rows come from (crowd_log.md, "Holders that pass the people waiting for their door").
 DOOR_PASS_WAITERS = False
 # How long a door turn's grant lasts for AMP pedestrians without its holder getting through (s;
