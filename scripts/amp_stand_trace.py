@@ -66,25 +66,13 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, every:
     with one_torch_thread(), diffusion_settings_for_new_crowds(diffusion_settings):
         wrapped, env = P._make(scene, people, "amp", seconds, seed, policy_dir, crowd, env_overrides)
         h = np.arange(env.n_robots, env.n_total)
-        k_every = max(int(round(every / env.config.dt)), 1)
-        dt_s = k_every * env.config.dt
-        prev_pos = env.pos[h].copy()
-        prev_tgt = env.amp.target_now().copy()
+        dt_s = sample_interval(env, every)
         samples: list[dict] = []
-        steps = 0
         t0 = time.time()
-        while not env._needs_reset:
-            wrapped.step({})
-            steps += 1
-            if steps % k_every:
-                continue
-            pos, tgt = env.pos[h].copy(), env.amp.target_now().copy()
+        for pos, tgt, speed, tgt_speed in sampled_run(wrapped, env, h, dt_s):
             root, heading, _, _ = env.amp.planar()
             ahead = env.amp.waypoints()[:, :5].mean(axis=1) - root
             bearing = np.degrees((np.arctan2(ahead[:, 1], ahead[:, 0]) - heading + np.pi) % (2 * np.pi) - np.pi)
-            speed = np.linalg.norm(pos - prev_pos, axis=1) / dt_s
-            tgt_speed = np.linalg.norm(tgt - prev_tgt, axis=1) / dt_s
-            prev_pos, prev_tgt = pos, tgt
             d = np.linalg.norm(pos[:, None] - pos[None], axis=2)
             np.fill_diagonal(d, np.inf)
             clear = env.scene.clearance(pos)
@@ -114,6 +102,29 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, every:
             "summary": {**summarize(samples),
                         **sight_summary(samples, waypoint_hidden(scene, samples,
                                                                  (env_overrides or {}).get("human_radius", 0.3)))}}
+
+
+def sample_interval(env, every: float) -> float:
+    """The sampling interval (s): ``every`` rounded to a whole number (at least one) of the env's steps."""
+    return max(int(round(every / env.config.dt)), 1) * env.config.dt
+
+
+def sampled_run(wrapped, env, h: np.ndarray, dt_s: float):
+    """Step ``wrapped`` (no robot actions) to the end of the run; every ``dt_s`` s (:func:`sample_interval`) yield the
+    positions (H, 2) and target points (H, 2) of the pedestrians ``h``, and their speeds (H,) since the last sample."""
+    k_every = max(int(round(dt_s / env.config.dt)), 1)
+    prev_pos, prev_tgt = env.pos[h].copy(), env.amp.target_now().copy()
+    steps = 0
+    while not env._needs_reset:
+        wrapped.step({})
+        steps += 1
+        if steps % k_every:
+            continue
+        pos, tgt = env.pos[h].copy(), env.amp.target_now().copy()
+        speed = np.linalg.norm(pos - prev_pos, axis=1) / dt_s
+        tgt_speed = np.linalg.norm(tgt - prev_tgt, axis=1) / dt_s
+        prev_pos, prev_tgt = pos, tgt
+        yield pos, tgt, speed, tgt_speed
 
 
 def door_state(turns, j: int, pos: np.ndarray) -> dict:

@@ -43,7 +43,7 @@ OPEN_M = 3.0
 def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, centre: np.ndarray, reach: float,
           every: float) -> dict:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from amp_stand_trace import door_state
+    from amp_stand_trace import door_state, sample_interval, sampled_run
 
     from navzoo.benchmark import pedestrians as P
     from navzoo.torch_threads import one_torch_thread
@@ -55,19 +55,8 @@ def trace(scene: str, people: int, crowd: str, seconds: float, seed: int, centre
         if env.door_turns is None:
             raise SystemExit("door turns are off in this run: nobody holds a door")
         h = np.arange(env.n_robots, env.n_total)
-        k_every = max(int(round(every / env.config.dt)), 1)
-        dt_s = k_every * env.config.dt
-        prev_pos, prev_tgt = env.pos[h].copy(), env.amp.target_now().copy()
-        steps = 0
-        while not env._needs_reset:
-            wrapped.step({})
-            steps += 1
-            if steps % k_every:
-                continue
-            pos, tgt = env.pos[h].copy(), env.amp.target_now().copy()
-            speed = np.linalg.norm(pos - prev_pos, axis=1) / dt_s
-            tgt_speed = np.linalg.norm(tgt - prev_tgt, axis=1) / dt_s
-            prev_pos, prev_tgt = pos, tgt
+        dt_s = sample_interval(env, every)
+        for pos, _, speed, tgt_speed in sampled_run(wrapped, env, h, dt_s):
             wps = env.amp.waypoints()
             pace = np.linalg.norm(wps[:, 2] - wps[:, 0], axis=1)  # two 0.5 s steps: metres in one second
             plan = None
