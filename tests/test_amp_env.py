@@ -527,8 +527,10 @@ def test_softer_walls_for_a_rollout_that_the_walls_hold_still(monkeypatch):
 def test_a_person_whom_fallen_bodies_cut_off_waits_when_asked(wait):
     """human_fallen_wait: a body across the doorway's only door leaves person 1 no way round; it stands (its target
     trajectory stays where it is) instead of walking on into the body, walks on once the door is free again, and
-    a new goal it cannot reach is drawn again."""
-    env = _raw(scene="doorway", n_robots=0, n_humans=2, max_episode_steps_override=200, human_fallen_wait=wait)
+    a new goal it cannot reach is drawn again. (Without ``human_fallen_redraw``, the default since 2026-12-08, whose
+    own test is below: here a person who does not wait walks a straight line at a goal no path reaches.)"""
+    env = _raw(scene="doorway", n_robots=0, n_humans=2, max_episode_steps_override=200, human_fallen_wait=wait,
+               human_fallen_redraw=False)
     env.reset(seed=1, options={"human_starts": [[2.0, 7.0], [5.0, 4.0]], "human_goals": [[2.0, 7.0], [13.0, 4.0]]})
     before = env.paths[1].copy()
     across = {0: np.array([[8.0, 4.0], [8.0, 3.2], [8.0, 4.8], [8.3, 3.5], [7.7, 4.5], [8.1, 4.0]])}  # root, key bodies
@@ -642,3 +644,9 @@ def test_a_new_goal_cut_off_by_fallen_bodies_is_drawn_again_or_walked_on_the_sce
 def test_human_fallen_redraw_must_be_a_bool():
     with pytest.raises(ValueError, match="human_fallen_redraw"):
         NavConfig(human_fallen_redraw="yes")
+
+
+def test_human_fallen_redraw_is_on_by_default_with_fallen_obstacles():
+    """The default since 2026-12-08 (the Intel device's rows, docs/crowd_log.md "Goals cut off by a fallen body")."""
+    config = NavConfig()
+    assert config.human_fallen_redraw is True and config.human_fallen_obstacles is True
