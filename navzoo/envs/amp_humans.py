@@ -154,8 +154,9 @@ DOOR_LINE_UP = 0.0
 # their plans walked at 1.04-1.08 (crowd_log.md, "Holders pressed against the wall beside the door"). An option, off:
 # on the AMD VM (seeds 0-7) ahead in the doorway and the home by about one standard error with either target generator
 # (+3.5 +- 3.2 / +2.5 +- 2.3 points per limit), level held out with either (-0.1 +- 1.3 / -1.0 +- 1.0, seeds 0-7 /
-# 0-3), more agent contacts in the doorway; not yet run on the
-# Intel device that the bold rows come from (crowd_log.md, "Holders that pass the people waiting for their door").
+# 0-3), more agent contacts in the doorway; on the Intel device that the bold rows come from (seeds 0-7) level with
+# diffusion targets (-0.3 +- 2.4) and behind with social-force targets (-4.5 +- 3.3, the home) (crowd_log.md,
+# "Holders that pass the people waiting for their door").
 DOOR_PASS_WAITERS = False
 # How long a door turn's grant lasts for AMP pedestrians without its holder getting through (s;
 # agents.door_turns.DoorParams.grant_max_s, 10 s for every crowd). The holder then asks again, last in the queue.
